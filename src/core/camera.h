@@ -1,0 +1,48 @@
+// Pinhole camera model and the axis conventions of the whole project.
+//
+// Conventions: OpenCV camera axes (x right, y down, z forward), world-to-camera
+// 4x4 rigid transforms, pixel centres at (x + 0.5, y + 0.5), distances in the
+// scene's own units. Readers convert nerfstudio/OpenGL camera-to-world poses.
+#pragma once
+#include <string>
+
+#include "core/mat.h"
+
+namespace ddhgs::core {
+
+struct Intrinsics {
+  double fx = 0, fy = 0;  // focal lengths, pixels
+  double cx = 0, cy = 0;  // principal point, pixels (top-left corner is 0, 0)
+  int width = 0, height = 0;
+  // OpenCV radial/tangential distortion; zero for a pinhole camera.
+  double k1 = 0, k2 = 0, p1 = 0, p2 = 0;
+
+  bool has_distortion() const { return k1 != 0 || k2 != 0 || p1 != 0 || p2 != 0; }
+  // Intrinsics of the same camera at 1/factor resolution (area-averaged images).
+  Intrinsics downscaled(int factor) const;
+};
+
+struct Camera {
+  Intrinsics intrinsics;
+  Mat4 world_to_camera;  // OpenCV axes
+
+  Mat4 camera_to_world() const { return world_to_camera.rigid_inverse(); }
+  Vec3 center() const { return camera_to_world().translation(); }
+  // Unit viewing direction (camera +z) in world coordinates.
+  Vec3 forward() const;
+};
+
+// nerfstudio/NeRF camera-to-world (OpenGL axes: x right, y up, z backward) to
+// an OpenCV world-to-camera. A uniform scale in the rotation block is removed.
+Mat4 opengl_c2w_to_opencv_w2c(const Mat4& c2w_gl);
+// The inverse conversion, used by the transforms.json writer.
+Mat4 opencv_w2c_to_opengl_c2w(const Mat4& w2c_cv);
+
+// World-to-camera (OpenCV) for a camera at eye looking at target, with
+// world_up giving the image's upward direction.
+Mat4 look_at(const Vec3& eye, const Vec3& target, const Vec3& world_up);
+
+// Field of view (radians) -> focal length (pixels) for an image extent (pixels).
+double focal_from_fov(double fov_rad, int extent_px);
+
+}  // namespace ddhgs::core

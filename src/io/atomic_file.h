@@ -1,0 +1,22 @@
+// Atomic writes: write a temporary sibling, then rename over the target, so
+// an interrupted or failed write never leaves a half-written file.
+#pragma once
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace ddhgs::io {
+
+// Calls write(tmp_path), then renames tmp_path to path. On any exception the
+// temporary file is removed and the exception propagates (as core::Error
+// naming path for I/O failures such as a full disk).
+void write_atomically(const std::filesystem::path& path,
+                      const std::function<void(const std::filesystem::path& tmp)>& write);
+
+// Convenience: atomically write a whole text or binary buffer.
+void write_file_atomically(const std::filesystem::path& path, const std::string& bytes);
+
+// Reads a whole file; core::Error naming it if missing or unreadable.
+std::string read_file(const std::filesystem::path& path);
+
+}  // namespace ddhgs::io

@@ -1,0 +1,33 @@
+// transforms.json in the nerfstudio / Hyper-NeRF layout.
+#pragma once
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+
+namespace ddhgs::io {
+
+struct TransformsFrame {
+  std::string file_path;                // pseudo-RGB image, relative to the file's folder
+  std::string hyperspectral_file_path;  // cube; empty for an RGB dataset
+  core::Intrinsics intrinsics;          // per-frame, or copied from the global keys
+  core::Mat4 camera_to_world_gl;        // as stored: OpenGL axes, maybe scaled rotation
+};
+
+struct TransformsFile {
+  std::vector<TransformsFrame> frames;
+  std::vector<double> wavelengths_nm;  // optional top-level "wavelengths"
+  std::string ply_file_path;           // optional initial points
+  std::optional<double> scale;         // optional divisor for integer cubes
+  // Optional explicit split: file_path values of the train / test frames.
+  std::vector<std::string> train_files, test_files;
+};
+
+// Throws core::Error naming the file for missing keys or wrong types.
+TransformsFile read_transforms(const std::filesystem::path& path);
+// Writes global intrinsics when all frames share them, per-frame otherwise.
+void write_transforms(const std::filesystem::path& path, const TransformsFile& file);
+
+}  // namespace ddhgs::io
