@@ -11,13 +11,19 @@ namespace {
 LogLevel g_level = LogLevel::Normal;
 }
 
-void set_log_level(LogLevel level) { g_level = level; }
-LogLevel log_level() { return g_level; }
+void set_log_level(LogLevel level) {
+  g_level = level;
+}
+LogLevel log_level() {
+  return g_level;
+}
 
 void log_info(const std::string& message) {
   if (g_level >= LogLevel::Normal) std::cerr << message << "\n";
 }
-void log_warn(const std::string& message) { std::cerr << "warning: " << message << "\n"; }
+void log_warn(const std::string& message) {
+  std::cerr << "warning: " << message << "\n";
+}
 void log_debug(const std::string& message) {
   if (g_level >= LogLevel::Verbose) std::cerr << message << "\n";
 }
@@ -71,8 +77,7 @@ void ProgressBar::finish(const std::string& status) {
 
 void ProgressBar::draw(bool final_line) {
   if (g_level < LogLevel::Normal) return;
-  double elapsed =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   double frac = double(done_) / double(total_);
   double rate = elapsed > 0 ? done_ / elapsed : 0.0;
   std::string eta = (rate > 0 && !final_line) ? format_duration((total_ - done_) / rate) : "";
@@ -82,8 +87,8 @@ void ProgressBar::draw(bool final_line) {
   char head[160];
   std::snprintf(head, sizeof head, "%s [%s] %lld/%lld %5.1f%% %.2f/s %s%s", label_.c_str(),
                 bar.c_str(), (long long)done_, (long long)total_, 100.0 * frac, rate,
-                final_line ? "in " : "eta ", final_line ? format_duration(elapsed).c_str()
-                                                        : eta.c_str());
+                final_line ? "in " : "eta ",
+                final_line ? format_duration(elapsed).c_str() : eta.c_str());
   std::string line = std::string(head) + (status_.empty() ? "" : "  " + status_);
   if (tty_) {
     std::cerr << "\r\033[K" << line << (final_line ? "\n" : "") << std::flush;

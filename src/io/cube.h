@@ -21,9 +21,9 @@ size_t bytes_per_sample(SampleType type);
 double default_scale(SampleType type);
 
 enum class BandLayout {
-  Auto,         // H x W x B unless the first axis is clearly the band axis
-  BandsLast,    // H x W x B
-  BandsFirst,   // B x H x W
+  Auto,        // H x W x B unless the first axis is clearly the band axis
+  BandsLast,   // H x W x B
+  BandsFirst,  // B x H x W
 };
 
 struct CubeReadOptions {

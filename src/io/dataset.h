@@ -26,34 +26,34 @@
 namespace ddhgs::io {
 
 struct LoadOptions {
-  int downscale = 1;           // area averaging; uses images_<d>/ folders when present
-  bool rgb = false;            // load the RGB file_path images as a 3-band scene
-  double band_min_nm = 0;      // keep bands with wavelength in [min, max]
+  int downscale = 1;       // area averaging; uses images_<d>/ folders when present
+  bool rgb = false;        // load the RGB file_path images as a 3-band scene
+  double band_min_nm = 0;  // keep bands with wavelength in [min, max]
   double band_max_nm = 1e9;
-  int bin = 1;                 // average groups of this many adjacent bands
-  size_t cache_mb = 4096;      // memory budget for decoded views
+  int bin = 1;             // average groups of this many adjacent bands
+  size_t cache_mb = 4096;  // memory budget for decoded views
   BandLayout layout = BandLayout::Auto;
-  std::optional<double> scale; // overrides the dataset's integer scale
+  std::optional<double> scale;  // overrides the dataset's integer scale
 };
 
 struct View {
-  std::string name;                 // file stem
-  core::Camera camera;              // at the loaded (downscaled) resolution
-  std::filesystem::path data_path;  // cube, or image for RGB scenes
-  std::filesystem::path clean_path; // empty when there is no clean ground truth
+  std::string name;                  // file stem
+  core::Camera camera;               // at the loaded (downscaled) resolution
+  std::filesystem::path data_path;   // cube, or image for RGB scenes
+  std::filesystem::path clean_path;  // empty when there is no clean ground truth
 };
 
 class Scene {
  public:
   std::filesystem::path root;
-  std::string layout;                  // "transforms.json", "colmap"
+  std::string layout;  // "transforms.json", "colmap"
   std::vector<View> views;
   std::vector<int> train, test;        // indices into views; disjoint
   std::vector<double> wavelengths_nm;  // one per loaded band
   PointCloud points;                   // xyz undefined when the dataset has none
   SampleType stored_type = SampleType::F32;
-  double scale = 1;                    // divisor applied to stored samples
-  std::vector<std::string> warnings;   // problems found while loading
+  double scale = 1;                   // divisor applied to stored samples
+  std::vector<std::string> warnings;  // problems found while loading
 
   int64_t bands() const { return int64_t(wavelengths_nm.size()); }
   bool has_clean() const;
@@ -78,7 +78,8 @@ class Scene {
 
 // Detects the layout and reads metadata (not the cubes). Throws core::Error on
 // a malformed dataset; missing frames are skipped with a warning.
-std::unique_ptr<Scene> load_scene(const std::filesystem::path& dir, const LoadOptions& options = {});
+std::unique_ptr<Scene> load_scene(const std::filesystem::path& dir,
+                                  const LoadOptions& options = {});
 
 // The Hyper-NeRF rule: train = floor(linspace(0, n-1, ceil(0.9 n))), test = rest.
 void hypernerf_split(int n, std::vector<int>& train, std::vector<int>& test);

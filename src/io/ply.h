@@ -13,12 +13,12 @@ namespace ddhgs::io {
 // f_rest is band-major: f_rest_{b*K+k} is band b, SH coefficient k+1, with
 // K = (degree+1)^2 - 1. A "comment wavelengths w0 w1 ..." header line (nm).
 struct GaussianPly {
-  torch::Tensor means;            // [G, 3] float32
-  torch::Tensor log_scales;       // [G, 3]
-  torch::Tensor quats;            // [G, 4] (w, x, y, z)
-  torch::Tensor logit_opacities;  // [G, 1]
-  torch::Tensor sh_dc;            // [G, N]
-  torch::Tensor sh_rest;          // [G, N, K], K in {0, 3, 8, 15}
+  torch::Tensor means;                 // [G, 3] float32
+  torch::Tensor log_scales;            // [G, 3]
+  torch::Tensor quats;                 // [G, 4] (w, x, y, z)
+  torch::Tensor logit_opacities;       // [G, 1]
+  torch::Tensor sh_dc;                 // [G, N]
+  torch::Tensor sh_rest;               // [G, N, K], K in {0, 3, 8, 15}
   std::vector<double> wavelengths_nm;  // may be empty
 
   int64_t bands() const { return sh_dc.size(1); }

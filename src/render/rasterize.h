@@ -14,8 +14,8 @@ namespace ddhgs::render {
 struct RenderCamera {
   float fx = 0, fy = 0, cx = 0, cy = 0;  // pixels
   int width = 0, height = 0;
-  float world_to_camera[16];             // row-major, OpenCV axes
-  float near_plane = 0.01f;              // scene units
+  float world_to_camera[16];  // row-major, OpenCV axes
+  float near_plane = 0.01f;   // scene units
   static RenderCamera from(const core::Camera& camera);
 };
 
@@ -37,7 +37,7 @@ RenderOutput rasterize(const torch::Tensor& means,            // [G, 3]
                        const torch::Tensor& logit_opacities,  // [G, 1]
                        const torch::Tensor& colors,           // [G, N]
                        const RenderCamera& camera,
-                       const torch::Tensor& background,       // [N]
+                       const torch::Tensor& background,  // [N]
                        const torch::Tensor& means2d_grad_sink = {});
 
 // Per-band spherical harmonics of degree 0-3:
@@ -51,7 +51,6 @@ torch::Tensor eval_sh(const torch::Tensor& sh_dc,          // [G, N]
                       const torch::Tensor& sh_rest,        // [G, N, K-1] or undefined
                       const torch::Tensor& means,          // [G, 3]
                       const torch::Tensor& camera_center,  // [3]
-                      int degree,
-                      const torch::Tensor& band_offsets = {});  // [N, K] or undefined
+                      int degree, const torch::Tensor& band_offsets = {});  // [N, K] or undefined
 
 }  // namespace ddhgs::render

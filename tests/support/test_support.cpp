@@ -49,8 +49,14 @@ int run_command(const std::string& command, std::string* output) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-std::string ddhgs_binary() { return DDHGS_BINARY; }
-fs::path source_dir() { return DDHGS_SOURCE_DIR; }
-std::string python() { return "/usr/bin/python3"; }
+std::string ddhgs_binary() {
+  return DDHGS_BINARY;
+}
+fs::path source_dir() {
+  return DDHGS_SOURCE_DIR;
+}
+std::string python() {
+  return "/usr/bin/python3";
+}
 
 }  // namespace ddhgs::test
