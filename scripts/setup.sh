@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# Installs what ddhgs needs from Debian 12 (only what is missing) and builds it.
+#   scripts/setup.sh               runtime + build dependencies, then build/
+#   scripts/setup.sh --with-tests  also the test-only packages
+# Quiet when everything is already there. Environment: BUILD_DIR (default build).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+with_tests=0
+for arg in "$@"; do
+  case "$arg" in
+    --with-tests) with_tests=1 ;;
+    *) echo "setup.sh: unknown option '$arg'" >&2; exit 2 ;;
+  esac
+done
+
+packages=(build-essential cmake ninja-build pkg-config libtorch-dev libopenblas0-pthread
+          nlohmann-json3-dev libcli11-dev libstb-dev libtiff-dev libpng-dev
+          libgtest-dev libbenchmark-dev)
+if [ "$with_tests" = 1 ]; then
+  # Independent cross-checks in tests: numpy for metrics and .npy files,
+  # PyTorch for .pt files written by torch.save.
+  packages+=(python3 python3-numpy python3-torch)
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
+  [ "$status" = "install ok installed" ] || missing+=("$p")
+done
+
+if [ "${#missing[@]}" -gt 0 ]; then
+  echo "setup: installing ${missing[*]}" >&2
+  sudo=""
+  if [ "$(id -u)" != 0 ]; then
+    if command -v sudo >/dev/null; then sudo="sudo"; else
+      echo "setup: missing packages (${missing[*]}) and not root: install them with apt-get as root" >&2
+      exit 1
+    fi
+  fi
+  export DEBIAN_FRONTEND=noninteractive
+  if ! { $sudo apt-get update -qq >/dev/null &&
+         $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/tmp/ddhgs-apt.log 2>&1; }; then
+    echo "setup: apt-get could not install: ${missing[*]} (log: /tmp/ddhgs-apt.log)" >&2
+    tail -5 /tmp/ddhgs-apt.log >&2 || true
+    exit 1
+  fi
+fi
+
+build_dir="${BUILD_DIR:-build}"
+if [ ! -f "$build_dir/build.ninja" ]; then
+  cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >"$build_dir.cmake.log" 2>&1 || {
+    echo "setup: cmake configuration failed (log: $build_dir.cmake.log)" >&2
+    tail -20 "$build_dir.cmake.log" >&2
+    exit 1
+  }
+  rm -f "$build_dir.cmake.log"
+fi
+ninja -C "$build_dir" -j "$(nproc)" --quiet 2>&1 | grep -v '^ninja: no work to do' || true
+test "${PIPESTATUS[0]}" = 0 || { echo "setup: build failed" >&2; exit 1; }
