@@ -1,0 +1,275 @@
+// Fast per-band SH evaluation (forward and exact backward) as an autograd
+// Function. Parallel over Gaussians; per Gaussian the basis is computed once
+// and reused for every band.
+#include "render/sh.h"
+
+#include <ATen/Parallel.h>
+
+#include "core/error.h"
+#include "render/rasterize.h"
+
+namespace ddhgs::render {
+namespace {
+
+// Fixed-size Gaussian chunks make the band_offsets gradient reduction
+// independent of the thread count: per-chunk partial sums are added in order.
+constexpr int64_t kChunk = 1024;
+
+struct ShShapes {
+  int64_t G = 0, N = 0;
+  int64_t rest_stride = 0;    // stored rest coefficients per band (>= K - 1)
+  int64_t offset_stride = 0;  // stored offsets per band (>= K), 0 without offsets
+};
+
+// Pointers into contiguous inputs of one dtype.
+template <typename T>
+struct ShInputs {
+  const T* dc;       // [G, N]
+  const T* rest;     // [G, N, rest_stride] or null
+  const T* means;    // [G, 3]
+  const T* center;   // [3]
+  const T* offsets;  // [N, offset_stride] or null
+};
+
+// Unit direction from the camera centre to the Gaussian and the distance; a
+// Gaussian exactly at the centre gets direction 0 (only the DC term then).
+template <typename T>
+inline T view_direction(const T* mean, const T* center, T dir[3]) {
+  const T d[3] = {mean[0] - center[0], mean[1] - center[1], mean[2] - center[2]};
+  const T length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  const T inv = length > T(0) ? T(1) / length : T(0);
+  for (int a = 0; a < 3; ++a) dir[a] = d[a] * inv;
+  return length;
+}
+
+// sum_k c[n, k] Y[k] + 0.5 for one Gaussian and band, offsets included.
+template <int K, typename T>
+inline T band_value(const ShInputs<T>& in, const ShShapes& s, int64_t g, int64_t n, const T* Y) {
+  T v = in.dc[g * s.N + n] * Y[0] + T(0.5);
+  if constexpr (K > 1) {
+    const T* rest = in.rest + (g * s.N + n) * s.rest_stride;
+    for (int k = 1; k < K; ++k) v += rest[k - 1] * Y[k];
+  }
+  if (in.offsets) {
+    const T* offset = in.offsets + n * s.offset_stride;
+    for (int k = 0; k < K; ++k) v += offset[k] * Y[k];
+  }
+  return v;
+}
+
+template <int Degree, typename T>
+void forward_kernel(const ShInputs<T>& in, const ShShapes& s, T* out) {
+  constexpr int K = sh_coeff_count(Degree);
+  at::parallel_for(0, s.G, 64, [&](int64_t begin, int64_t end) {
+    for (int64_t g = begin; g < end; ++g) {
+      T dir[3], Y[16];
+      view_direction(in.means + 3 * g, in.center, dir);
+      sh_basis<Degree>(dir[0], dir[1], dir[2], Y);
+      for (int64_t n = 0; n < s.N; ++n)
+        out[g * s.N + n] = std::max(band_value<K>(in, s, g, n, Y), T(0));
+    }
+  });
+}
+
+// Gradient outputs; a null pointer means that input needs no gradient.
+template <typename T>
+struct ShGrads {
+  T* dc = nullptr;       // [G, N]
+  T* rest = nullptr;     // [G, N, rest_stride], zero-initialised
+  T* means = nullptr;    // [G, 3]
+  T* offsets = nullptr;  // [chunks, N, K] per-chunk partial sums, zero-initialised
+};
+
+template <int Degree, typename T>
+void backward_kernel(const ShInputs<T>& in, const ShShapes& s, const T* grad_out,
+                     const ShGrads<T>& gr) {
+  constexpr int K = sh_coeff_count(Degree);
+  const int64_t chunks = (s.G + kChunk - 1) / kChunk;
+  at::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
+    for (int64_t chunk = chunk_begin; chunk < chunk_end; ++chunk) {
+      T* offsets_partial = gr.offsets ? gr.offsets + chunk * s.N * K : nullptr;
+      const int64_t g_end = std::min(s.G, (chunk + 1) * kChunk);
+      for (int64_t g = chunk * kChunk; g < g_end; ++g) {
+        T dir[3], Y[16], dY[16][3];
+        const T length = view_direction(in.means + 3 * g, in.center, dir);
+        sh_basis<Degree>(dir[0], dir[1], dir[2], Y, dY);
+        // dL/dY[k] summed over bands, for the direction gradient.
+        T dL_dY[16] = {};
+        for (int64_t n = 0; n < s.N; ++n) {
+          // Matches clamp_min's convention: the gradient passes at exactly 0.
+          const bool clamped = band_value<K>(in, s, g, n, Y) < T(0);
+          const T gv = clamped ? T(0) : grad_out[g * s.N + n];
+          if (gr.dc) gr.dc[g * s.N + n] = gv * Y[0];
+          if (gv == T(0)) continue;
+          if (gr.rest) {
+            T* rest_grad = gr.rest + (g * s.N + n) * s.rest_stride;
+            for (int k = 1; k < K; ++k) rest_grad[k - 1] = gv * Y[k];
+          }
+          if (offsets_partial) {
+            T* partial = offsets_partial + n * K;
+            for (int k = 0; k < K; ++k) partial[k] += gv * Y[k];
+          }
+          if (gr.means && K > 1) {
+            const T* rest = in.rest + (g * s.N + n) * s.rest_stride;
+            const T* offset = in.offsets ? in.offsets + n * s.offset_stride : nullptr;
+            for (int k = 1; k < K; ++k)
+              dL_dY[k] += gv * (rest[k - 1] + (offset ? offset[k] : T(0)));
+          }
+        }
+        if (!gr.means) continue;
+        T dL_ddir[3] = {0, 0, 0};
+        for (int k = 1; k < K; ++k)
+          for (int a = 0; a < 3; ++a) dL_ddir[a] += dL_dY[k] * dY[k][a];
+        // d(d/|d|)/dd = (I - dir dir^T) / |d|.
+        const T along = dL_ddir[0] * dir[0] + dL_ddir[1] * dir[1] + dL_ddir[2] * dir[2];
+        const T inv = length > T(0) ? T(1) / length : T(0);
+        for (int a = 0; a < 3; ++a) gr.means[3 * g + a] = (dL_ddir[a] - along * dir[a]) * inv;
+      }
+    }
+  });
+}
+
+template <typename F>
+void dispatch_degree(int degree, F&& f) {
+  switch (degree) {
+    case 0:
+      return f(std::integral_constant<int, 0>{});
+    case 1:
+      return f(std::integral_constant<int, 1>{});
+    case 2:
+      return f(std::integral_constant<int, 2>{});
+    default:
+      return f(std::integral_constant<int, 3>{});
+  }
+}
+
+template <typename T>
+ShInputs<T> inputs_of(const torch::Tensor& dc, const torch::Tensor& rest,
+                      const torch::Tensor& means, const torch::Tensor& center,
+                      const torch::Tensor& offsets) {
+  return {dc.data_ptr<T>(), rest.numel() ? rest.data_ptr<T>() : nullptr, means.data_ptr<T>(),
+          center.data_ptr<T>(), offsets.numel() ? offsets.data_ptr<T>() : nullptr};
+}
+
+ShShapes shapes_of(const torch::Tensor& dc, const torch::Tensor& rest,
+                   const torch::Tensor& offsets) {
+  return {dc.size(0), dc.size(1), rest.size(2), offsets.numel() ? offsets.size(1) : 0};
+}
+
+class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
+ public:
+  // Inputs are contiguous, of one floating dtype; rest is [G, N, R] (R may be
+  // 0) and offsets [N, KO] (empty when absent).
+  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& dc,
+                               const torch::Tensor& rest, const torch::Tensor& means,
+                               const torch::Tensor& center, const torch::Tensor& offsets,
+                               int degree) {
+    ctx->save_for_backward({dc, rest, means, center, offsets});
+    ctx->saved_data["degree"] = degree;
+    auto out = torch::empty_like(dc);
+    const ShShapes shapes = shapes_of(dc, rest, offsets);
+    AT_DISPATCH_FLOATING_TYPES(dc.scalar_type(), "eval_sh_forward", [&] {
+      const auto in = inputs_of<scalar_t>(dc, rest, means, center, offsets);
+      dispatch_degree(degree, [&](auto deg) {
+        forward_kernel<decltype(deg)::value>(in, shapes, out.data_ptr<scalar_t>());
+      });
+    });
+    return out;
+  }
+
+  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                 torch::autograd::variable_list grad_outputs) {
+    const auto saved = ctx->get_saved_variables();
+    const auto &dc = saved[0], &rest = saved[1], &means = saved[2], &center = saved[3],
+               &offsets = saved[4];
+    const int degree = int(ctx->saved_data["degree"].toInt());
+    const int64_t K = sh_coeff_count(degree);
+    const auto grad_out = grad_outputs[0].contiguous();
+    const ShShapes shapes = shapes_of(dc, rest, offsets);
+    const bool want_means = ctx->needs_input_grad(2) || ctx->needs_input_grad(3);
+    const bool want_offsets = ctx->needs_input_grad(4) && offsets.numel() > 0;
+    torch::Tensor d_dc = ctx->needs_input_grad(0) ? torch::empty_like(dc) : torch::Tensor();
+    torch::Tensor d_rest = ctx->needs_input_grad(1) ? torch::zeros_like(rest) : torch::Tensor();
+    torch::Tensor d_means = want_means ? torch::empty_like(means) : torch::Tensor();
+    const int64_t chunks = (shapes.G + kChunk - 1) / kChunk;
+    torch::Tensor partials =
+        want_offsets ? torch::zeros({chunks, shapes.N, K}, dc.options()) : torch::Tensor();
+    AT_DISPATCH_FLOATING_TYPES(dc.scalar_type(), "eval_sh_backward", [&] {
+      const auto in = inputs_of<scalar_t>(dc, rest, means, center, offsets);
+      ShGrads<scalar_t> grads;
+      if (d_dc.defined()) grads.dc = d_dc.data_ptr<scalar_t>();
+      if (d_rest.defined() && d_rest.numel()) grads.rest = d_rest.data_ptr<scalar_t>();
+      if (d_means.defined()) grads.means = d_means.data_ptr<scalar_t>();
+      if (partials.defined()) grads.offsets = partials.data_ptr<scalar_t>();
+      dispatch_degree(degree, [&](auto deg) {
+        backward_kernel<decltype(deg)::value>(in, shapes, grad_out.data_ptr<scalar_t>(), grads);
+      });
+    });
+    torch::Tensor d_offsets;
+    if (want_offsets) {
+      d_offsets = torch::zeros_like(offsets);
+      // Summed in double, chunk by chunk in order: same bits for any thread count.
+      d_offsets.slice(1, 0, K).copy_(partials.to(torch::kFloat64).sum(0));
+    }
+    torch::Tensor d_center;
+    if (ctx->needs_input_grad(3)) d_center = -d_means.sum(0);
+    if (!ctx->needs_input_grad(2)) d_means = torch::Tensor();
+    return {d_dc, d_rest, d_means, d_center, d_offsets, torch::Tensor()};
+  }
+};
+
+void check_shapes(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
+                  const torch::Tensor& means, const torch::Tensor& camera_center, int degree,
+                  const torch::Tensor& band_offsets) {
+  using core::require;
+  require(degree >= 0 && degree <= kMaxShDegree,
+          "eval_sh: SH degree must be 0-3, got " + std::to_string(degree));
+  require(sh_dc.defined() && sh_dc.dim() == 2 && sh_dc.size(1) >= 1,
+          "eval_sh: sh_dc must be [G, N] with N >= 1");
+  const int64_t G = sh_dc.size(0), N = sh_dc.size(1), K = sh_coeff_count(degree);
+  const auto dtype = sh_dc.scalar_type();
+  require(dtype == torch::kFloat32 || dtype == torch::kFloat64,
+          "eval_sh: coefficients must be float32 or float64");
+  auto same_kind = [&](const torch::Tensor& t) {
+    return t.scalar_type() == dtype && t.device().is_cpu();
+  };
+  require(sh_dc.device().is_cpu(), "eval_sh: tensors must be on the CPU");
+  require(means.defined() && means.dim() == 2 && means.size(0) == G && means.size(1) == 3 &&
+              same_kind(means),
+          "eval_sh: means must be [G, 3] with G = " + std::to_string(G) + " and sh_dc's dtype");
+  require(camera_center.defined() && camera_center.numel() == 3 && same_kind(camera_center),
+          "eval_sh: camera_center must have 3 elements of sh_dc's dtype");
+  require(K == 1 || sh_rest.defined(),
+          "eval_sh: degree " + std::to_string(degree) + " needs sh_rest");
+  if (sh_rest.defined()) {
+    require(sh_rest.dim() == 3 && sh_rest.size(0) == G && sh_rest.size(1) == N &&
+                sh_rest.size(2) >= K - 1 && same_kind(sh_rest),
+            "eval_sh: sh_rest must be [G, N, >= " + std::to_string(K - 1) + "] for degree " +
+                std::to_string(degree) + " with G = " + std::to_string(G) +
+                ", N = " + std::to_string(N));
+  }
+  if (band_offsets.defined()) {
+    require(band_offsets.dim() == 2 && band_offsets.size(0) == N && band_offsets.size(1) >= K &&
+                same_kind(band_offsets),
+            "eval_sh: band_offsets must be [N, >= " + std::to_string(K) +
+                "] with N = " + std::to_string(N));
+  }
+}
+
+}  // namespace
+
+torch::Tensor eval_sh(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
+                      const torch::Tensor& means, const torch::Tensor& camera_center, int degree,
+                      const torch::Tensor& band_offsets) {
+  check_shapes(sh_dc, sh_rest, means, camera_center, degree, band_offsets);
+  const int64_t G = sh_dc.size(0), N = sh_dc.size(1);
+  // Absent inputs become empty tensors so the autograd Function always sees
+  // the same five tensor arguments.
+  auto rest = sh_rest.defined() ? sh_rest.contiguous() : torch::zeros({G, N, 0}, sh_dc.options());
+  auto offsets =
+      band_offsets.defined() ? band_offsets.contiguous() : torch::zeros({N, 0}, sh_dc.options());
+  return EvalShFunction::apply(sh_dc.contiguous(), rest, means.contiguous(),
+                               camera_center.reshape({3}).contiguous(), offsets, degree);
+}
+
+}  // namespace ddhgs::render
