@@ -1,0 +1,110 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "model/adam.h"
+
+using namespace ddhgs;
+
+TEST(Adam, FusedStepMatchesTorchAdamOverSeveralSteps) {
+  torch::manual_seed(7);
+  auto a0 = torch::randn({64, 5, 15});
+  auto b0 = torch::randn({33, 3});
+  auto a = a0.clone().requires_grad_(true);
+  auto b = b0.clone().requires_grad_(true);
+  auto ra = a0.clone().requires_grad_(true);
+  auto rb = b0.clone().requires_grad_(true);
+
+  model::Adam fused({0.9, 0.999, 1e-15});
+  fused.add("a", a, 2.5e-3);
+  fused.add("b", b, 1e-2);
+  std::vector<torch::optim::OptimizerParamGroup> groups;
+  groups.emplace_back(std::vector<torch::Tensor>{ra},
+                      std::make_unique<torch::optim::AdamOptions>(2.5e-3));
+  groups.emplace_back(std::vector<torch::Tensor>{rb},
+                      std::make_unique<torch::optim::AdamOptions>(1e-2));
+  for (auto& g : groups) static_cast<torch::optim::AdamOptions&>(g.options()).eps(1e-15);
+  torch::optim::Adam reference(groups);
+
+  for (int step = 0; step < 6; ++step) {
+    auto ga = torch::randn(a.sizes()) * (step + 1);
+    auto gb = torch::randn(b.sizes()) * 1e-3;
+    a.mutable_grad() = ga.clone();
+    b.mutable_grad() = gb.clone();
+    ra.mutable_grad() = ga.clone();
+    rb.mutable_grad() = gb.clone();
+    fused.step();
+    reference.step();
+  }
+  EXPECT_LT((a - ra).abs().max().item<double>(), 1e-6);
+  EXPECT_LT((b - rb).abs().max().item<double>(), 1e-6);
+  EXPECT_EQ(fused.group("a").step, 6);
+  // The parameter actually moved.
+  EXPECT_GT((a - a0).abs().max().item<double>(), 1e-3);
+}
+
+TEST(Adam, SkipsParametersWithoutGradients) {
+  auto p = torch::ones({4}).requires_grad_(true);
+  model::Adam adam;
+  adam.add("p", p, 0.1);
+  adam.step();
+  EXPECT_TRUE(torch::equal(p, torch::ones({4})));
+  EXPECT_EQ(adam.group("p").step, 0);
+  EXPECT_THROW(adam.add("p", p, 0.1), std::exception);
+  EXPECT_THROW(adam.group("q"), std::exception);
+}
+
+TEST(Adam, RemapRowsMovesMomentsAndZeroesNewRows) {
+  auto p = torch::arange(6, torch::kFloat32).view({3, 2}).requires_grad_(true);
+  model::Adam adam;
+  adam.add("p", p, 0.1);
+  p.mutable_grad() = torch::ones({3, 2});
+  adam.step();
+  auto m = adam.group("p").exp_avg.clone();
+  auto index = torch::tensor({2, -1, 0}, torch::kInt64);
+  auto next = torch::zeros({3, 2}).requires_grad_(true);
+  adam.remap_rows("p", next, index);
+  const auto& g = adam.group("p");
+  EXPECT_TRUE(torch::equal(g.exp_avg[0], m[2]));
+  EXPECT_TRUE(torch::equal(g.exp_avg[1], torch::zeros({2})));
+  EXPECT_TRUE(torch::equal(g.exp_avg[2], m[0]));
+  EXPECT_TRUE(g.param.is_same(next));
+}
+
+TEST(Adam, SaveAndLoadRestoreTheState) {
+  auto p = torch::randn({5, 2}).requires_grad_(true);
+  model::Adam adam;
+  adam.add("p", p, 0.1);
+  p.mutable_grad() = torch::randn({5, 2});
+  adam.step();
+  torch::serialize::OutputArchive out;
+  adam.save(out);
+  std::ostringstream bytes;
+  out.save_to(bytes);
+
+  model::Adam restored;
+  restored.add("p", p, 0.5);
+  torch::serialize::InputArchive in;
+  std::istringstream stream(bytes.str());
+  in.load_from(stream);
+  restored.load(in, "ckpt.pt");
+  EXPECT_EQ(restored.group("p").step, 1);
+  EXPECT_DOUBLE_EQ(restored.group("p").lr, 0.1);
+  EXPECT_TRUE(torch::equal(restored.group("p").exp_avg_sq, adam.group("p").exp_avg_sq));
+
+  model::Adam other;
+  other.add("q", p, 0.1);
+  torch::serialize::InputArchive in2;
+  std::istringstream stream2(bytes.str());
+  in2.load_from(stream2);
+  EXPECT_THROW(other.load(in2, "ckpt.pt"), std::exception);
+}
+
+TEST(Adam, ExponentialScheduleIsLogLinear) {
+  EXPECT_NEAR(model::exponential_lr(0, 1.6e-4, 1.6e-6, 30000), 1.6e-4, 1e-12);
+  EXPECT_NEAR(model::exponential_lr(15000, 1.6e-4, 1.6e-6, 30000), 1.6e-5, 1e-12);
+  EXPECT_NEAR(model::exponential_lr(30000, 1.6e-4, 1.6e-6, 30000), 1.6e-6, 1e-14);
+  EXPECT_NEAR(model::exponential_lr(90000, 1.6e-4, 1.6e-6, 30000), 1.6e-6, 1e-14);
+  // The warm-up starts at delay_mult times the schedule.
+  EXPECT_NEAR(model::exponential_lr(0, 1.0, 1.0, 100, 10, 0.01), 0.01, 1e-12);
+}
