@@ -1,0 +1,133 @@
+// Channel-loop kernels of the blender. Rows are padded to a multiple of 8
+// floats so one AVX register holds 8 channels; the accumulators of a 64-channel
+// block stay in registers across a whole list of (row, weight) pairs, so each
+// FMA costs one load instead of a load, a load and a store.
+#pragma once
+#include <cstdint>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
+
+namespace ddhgs::render::kernels {
+
+constexpr int kLanes = 8;  // channels per vector; padded row length is a multiple
+
+inline int padded_channels(int64_t n) {
+  return int((n + kLanes - 1) / kLanes * kLanes);
+}
+
+#if defined(__AVX2__) && defined(__FMA__)
+
+template <int V>
+inline void gather_axpy_block(float* acc, const float* rows, int stride, const uint8_t* idx,
+                              const float* w, int count) {
+  __m256 a[V];
+  for (int v = 0; v < V; ++v) a[v] = _mm256_loadu_ps(acc + kLanes * v);
+  for (int j = 0; j < count; ++j) {
+    const float* r = rows + int64_t(idx[j]) * stride;
+    const __m256 wj = _mm256_set1_ps(w[j]);
+    for (int v = 0; v < V; ++v) a[v] = _mm256_fmadd_ps(wj, _mm256_loadu_ps(r + kLanes * v), a[v]);
+  }
+  for (int v = 0; v < V; ++v) _mm256_storeu_ps(acc + kLanes * v, a[v]);
+}
+
+template <int V>
+inline void gather_dot_block(const float* x, const float* rows, int stride, const uint8_t* idx,
+                             int count, float* out) {
+  __m256 xv[V];
+  for (int v = 0; v < V; ++v) xv[v] = _mm256_loadu_ps(x + kLanes * v);
+  for (int j = 0; j < count; ++j) {
+    const float* r = rows + int64_t(idx[j]) * stride;
+    __m256 s = _mm256_mul_ps(xv[0], _mm256_loadu_ps(r));
+    for (int v = 1; v < V; ++v) s = _mm256_fmadd_ps(xv[v], _mm256_loadu_ps(r + kLanes * v), s);
+    const __m128 h = _mm_add_ps(_mm256_castps256_ps128(s), _mm256_extractf128_ps(s, 1));
+    const __m128 h2 = _mm_add_ps(h, _mm_movehl_ps(h, h));
+    out[j] += _mm_cvtss_f32(_mm_add_ss(h2, _mm_shuffle_ps(h2, h2, 1)));
+  }
+}
+
+// Calls block<V>(offset) over a padded row of n channels in blocks of at most
+// 8 vectors, so every block size is a compile-time constant.
+template <template <int> class Op, typename... Args>
+inline void over_blocks(int n, Args... args) {
+  int c = 0;
+  for (; c + 8 * kLanes <= n; c += 8 * kLanes) Op<8>::run(c, args...);
+  switch ((n - c) / kLanes) {
+    case 1:
+      Op<1>::run(c, args...);
+      break;
+    case 2:
+      Op<2>::run(c, args...);
+      break;
+    case 3:
+      Op<3>::run(c, args...);
+      break;
+    case 4:
+      Op<4>::run(c, args...);
+      break;
+    case 5:
+      Op<5>::run(c, args...);
+      break;
+    case 6:
+      Op<6>::run(c, args...);
+      break;
+    case 7:
+      Op<7>::run(c, args...);
+      break;
+    default:
+      break;
+  }
+}
+
+template <int V>
+struct AxpyOp {
+  static void run(int c, float* acc, const float* rows, int stride, const uint8_t* idx,
+                  const float* w, int count) {
+    gather_axpy_block<V>(acc + c, rows + c, stride, idx, w, count);
+  }
+};
+
+template <int V>
+struct DotOp {
+  static void run(int c, const float* x, const float* rows, int stride, const uint8_t* idx,
+                  int count, float* out) {
+    gather_dot_block<V>(x + c, rows + c, stride, idx, count, out);
+  }
+};
+
+// acc[0, n) += sum_j w[j] * rows[idx[j]][0, n); n is a multiple of kLanes.
+inline void gather_axpy(float* acc, const float* rows, int n, const uint8_t* idx, const float* w,
+                        int count) {
+  over_blocks<AxpyOp>(n, acc, rows, n, idx, w, count);
+}
+
+// out[j] += dot(x[0, n), rows[idx[j]][0, n)) for each j; n a multiple of kLanes.
+inline void gather_dot(const float* x, const float* rows, int n, const uint8_t* idx, int count,
+                       float* out) {
+  over_blocks<DotOp>(n, x, rows, n, idx, count, out);
+}
+
+#else  // portable fallback: the compiler vectorises the inner loops it can
+
+inline void gather_axpy(float* acc, const float* rows, int n, const uint8_t* idx, const float* w,
+                        int count) {
+  for (int j = 0; j < count; ++j) {
+    const float* r = rows + int64_t(idx[j]) * n;
+    for (int c = 0; c < n; ++c) acc[c] += w[j] * r[c];
+  }
+}
+
+inline void gather_dot(const float* x, const float* rows, int n, const uint8_t* idx, int count,
+                       float* out) {
+  for (int j = 0; j < count; ++j) {
+    const float* r = rows + int64_t(idx[j]) * n;
+    float s = 0;
+    for (int c = 0; c < n; ++c) s += x[c] * r[c];
+    out[j] += s;
+  }
+}
+
+#endif
+
+}  // namespace ddhgs::render::kernels

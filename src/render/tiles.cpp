@@ -1,0 +1,107 @@
+#include "render/tiles.h"
+
+#include <algorithm>
+#include <cstring>
+#include <numeric>
+
+namespace ddhgs::render {
+namespace {
+
+// Order-preserving map from float to unsigned (negative depths sort first).
+uint32_t sortable_bits(float value) {
+  uint32_t bits;
+  std::memcpy(&bits, &value, sizeof bits);
+  return (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
+}
+
+// Sort scratch reused between calls; thread_local so concurrent renders on
+// different threads never share it.
+struct SortScratch {
+  std::vector<uint32_t> keys, keys_tmp;
+  std::vector<int32_t> order, order_tmp;
+};
+
+// Stable LSD radix sort of `order` by `keys` (11-bit digits, 3 passes), so
+// equal depths keep increasing Gaussian index.
+void radix_sort(SortScratch& s) {
+  const size_t n = s.keys.size();
+  s.keys_tmp.resize(n);
+  s.order_tmp.resize(n);
+  constexpr int kBits = 11, kBuckets = 1 << kBits;
+  std::vector<uint32_t> count(kBuckets);
+  for (int shift = 0; shift < 32; shift += kBits) {
+    std::fill(count.begin(), count.end(), 0u);
+    for (size_t i = 0; i < n; ++i) ++count[(s.keys[i] >> shift) & (kBuckets - 1)];
+    uint32_t sum = 0;
+    for (auto& c : count) {
+      const uint32_t here = c;
+      c = sum;
+      sum += here;
+    }
+    for (size_t i = 0; i < n; ++i) {
+      const uint32_t slot = count[(s.keys[i] >> shift) & (kBuckets - 1)]++;
+      s.keys_tmp[slot] = s.keys[i];
+      s.order_tmp[slot] = s.order[i];
+    }
+    s.keys.swap(s.keys_tmp);
+    s.order.swap(s.order_tmp);
+  }
+}
+
+// Longest-processing-time assignment: deterministic (ties go to the lower
+// tile and thread index) and balanced, so backward gradient sums per thread
+// are reproducible run to run while uneven tiles still share the cores.
+void assign_tiles(int threads, TileBins& bins) {
+  const int n = bins.num_tiles();
+  std::vector<int32_t> tiles(n);
+  std::iota(tiles.begin(), tiles.end(), 0);
+  auto cost = [&](int t) { return int64_t(bins.offsets[t + 1] - bins.offsets[t]) + 1; };
+  std::stable_sort(tiles.begin(), tiles.end(), [&](int a, int b) { return cost(a) > cost(b); });
+  bins.thread_tiles.resize(threads);
+  for (auto& list : bins.thread_tiles) list.clear();
+  std::vector<int64_t> load(threads, 0);
+  for (int t : tiles) {
+    const int k = int(std::min_element(load.begin(), load.end()) - load.begin());
+    bins.thread_tiles[k].push_back(t);
+    load[k] += cost(t);
+  }
+}
+
+}  // namespace
+
+void bin_gaussians(const float* means2d, const float* depths, const int32_t* radii, int64_t count,
+                   int width, int height, int threads, TileBins& bins) {
+  thread_local SortScratch scratch;
+  bins.tiles_x = tiles_along(width);
+  bins.tiles_y = tiles_along(height);
+  scratch.keys.clear();
+  scratch.order.clear();
+  for (int64_t i = 0; i < count; ++i) {
+    if (radii[i] <= 0) continue;
+    scratch.keys.push_back(sortable_bits(depths[i]));
+    scratch.order.push_back(int32_t(i));
+  }
+  radix_sort(scratch);
+
+  const int n_tiles = bins.num_tiles();
+  bins.offsets.assign(n_tiles + 1, 0);
+  auto rect_of = [&](int32_t g) {
+    return tile_rect(means2d[2 * g], means2d[2 * g + 1], radii[g], bins.tiles_x, bins.tiles_y);
+  };
+  for (int32_t g : scratch.order) {
+    const TileRect r = rect_of(g);
+    for (int ty = r.y0; ty < r.y1; ++ty)
+      for (int tx = r.x0; tx < r.x1; ++tx) ++bins.offsets[ty * bins.tiles_x + tx + 1];
+  }
+  std::partial_sum(bins.offsets.begin(), bins.offsets.end(), bins.offsets.begin());
+  bins.ids.resize(bins.offsets[n_tiles]);
+  std::vector<int32_t> cursor(bins.offsets.begin(), bins.offsets.end() - 1);
+  for (int32_t g : scratch.order) {
+    const TileRect r = rect_of(g);
+    for (int ty = r.y0; ty < r.y1; ++ty)
+      for (int tx = r.x0; tx < r.x1; ++tx) bins.ids[cursor[ty * bins.tiles_x + tx]++] = g;
+  }
+  assign_tiles(std::max(1, threads), bins);
+}
+
+}  // namespace ddhgs::render

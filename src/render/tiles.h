@@ -1,0 +1,52 @@
+// Screen tiles: which Gaussians touch which 16x16 tile, in depth order, and
+// which thread renders which tile. Internal to the render layer.
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+namespace ddhgs::render {
+
+constexpr int kTileSize = 16;  // pixels per tile side
+
+struct TileRect {
+  int x0, y0, x1, y1;  // tile index range [x0, x1) x [y0, y1)
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+// Tiles covered by the square of half-width radius_px around (u, v), as in
+// 3DGS's getRect. Clamps in floating point first so off-screen values far out
+// of int range stay well defined.
+inline TileRect tile_rect(double u, double v, double radius_px, int tiles_x, int tiles_y) {
+  auto lo = [](double c, double r, int n) {
+    return int(std::fmin(double(n), std::fmax(0.0, std::floor((c - r) / kTileSize))));
+  };
+  auto hi = [](double c, double r, int n) {
+    return int(
+        std::fmin(double(n), std::fmax(0.0, std::floor((c + r + kTileSize - 1) / kTileSize))));
+  };
+  return {lo(u, radius_px, tiles_x), lo(v, radius_px, tiles_y), hi(u, radius_px, tiles_x),
+          hi(v, radius_px, tiles_y)};
+}
+
+inline int tiles_along(int pixels) {
+  return (pixels + kTileSize - 1) / kTileSize;
+}
+
+// Per-tile lists of Gaussian indices sorted by depth (ties by index), plus a
+// balanced, deterministic assignment of tiles to threads.
+struct TileBins {
+  int tiles_x = 0, tiles_y = 0;
+  std::vector<int32_t> offsets;                    // [tiles + 1] into ids
+  std::vector<int32_t> ids;                        // Gaussian indices, tile-major
+  std::vector<std::vector<int32_t>> thread_tiles;  // [threads][...] tile indices
+
+  int num_tiles() const { return tiles_x * tiles_y; }
+};
+
+// Fills bins (buffers keep their capacity between calls). radii == 0 means
+// culled. means2d: [G, 2] pixels, depths: [G], radii: [G].
+void bin_gaussians(const float* means2d, const float* depths, const int32_t* radii, int64_t count,
+                   int width, int height, int threads, TileBins& bins);
+
+}  // namespace ddhgs::render
