@@ -1,0 +1,266 @@
+#include "model/diffusion.h"
+
+#include <cmath>
+
+#include "core/error.h"
+
+namespace ddhgs::model {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kCosineOffset = 0.008;
+constexpr double kMaxBeta = 0.999;
+
+torch::Tensor to_model_space(const torch::Tensor& x) {
+  return x * 2.0 - 1.0;
+}
+torch::Tensor to_data_space(const torch::Tensor& x) {
+  return ((x + 1.0) * 0.5).clamp(0.0, 1.0);
+}
+
+std::vector<double> linear_betas(int64_t steps, double start, double end) {
+  std::vector<double> betas(steps);
+  for (int64_t t = 0; t < steps; ++t)
+    betas[t] = steps == 1 ? start : start + (end - start) * double(t) / double(steps - 1);
+  return betas;
+}
+
+std::vector<double> cosine_betas(int64_t steps) {
+  auto f = [&](double u) {
+    const double c = std::cos((u / double(steps) + kCosineOffset) / (1 + kCosineOffset) * kPi / 2);
+    return c * c;
+  };
+  std::vector<double> betas(steps);
+  for (int64_t t = 0; t < steps; ++t)
+    betas[t] = std::min(1.0 - f(double(t + 1)) / f(double(t)), kMaxBeta);
+  return betas;
+}
+
+torch::Tensor as_float_tensor(const std::vector<double>& values) {
+  return torch::tensor(values, torch::kFloat64).to(torch::kFloat32);
+}
+
+// Per-sample constants [B] broadcast against images [B, N, H, W].
+torch::Tensor per_sample(const torch::Tensor& table, const torch::Tensor& t,
+                         const torch::Tensor& like) {
+  return table.to(like.device()).index_select(0, t).to(like.dtype()).reshape({-1, 1, 1, 1});
+}
+
+torch::Tensor full_step(int64_t batch, int64_t t) {
+  return torch::full({batch}, t, torch::kLong);
+}
+
+struct ReverseStart {
+  torch::Tensor x;  // [B, N, H, W] model space
+  int64_t t_start;
+};
+
+// Pure noise for a full-strength start, else the condition noised to t_s:
+// the render already holds the scene, so fewer steps are needed.
+ReverseStart reverse_start(const NoiseSchedule& schedule, const torch::Tensor& cond_model,
+                           double start_strength, at::Generator& generator) {
+  const int64_t t_start = start_step(schedule.steps, start_strength);
+  auto noise = torch::randn(cond_model.sizes(), generator, cond_model.options());
+  if (start_strength >= 1.0) return {noise, t_start};
+  return {q_sample(schedule, cond_model, full_step(cond_model.size(0), t_start), noise), t_start};
+}
+
+// x0 implied by the predicted noise, clipped to the data range, and the noise
+// consistent with the clipped x0 (so DDIM and DDPM use the same x0).
+std::pair<torch::Tensor, torch::Tensor> predict_x0_eps(const NoisePredictor& predictor,
+                                                       const torch::Tensor& x,
+                                                       const torch::Tensor& cond_model, int64_t t,
+                                                       double abar) {
+  auto eps = predictor(x, cond_model, full_step(x.size(0), t));
+  const double a = std::sqrt(abar), b = std::sqrt(1.0 - abar);
+  auto x0 = ((x - b * eps) / a).clamp(-1.0, 1.0);
+  return {x0, (x - a * x0) / b};
+}
+
+void check_condition(const torch::Tensor& cond) {
+  TORCH_CHECK(cond.dim() == 4, "diffusion: condition must be [B, N, H, W], got ", cond.sizes());
+}
+
+}  // namespace
+
+BetaSchedule parse_beta_schedule(const std::string& name, const std::string& where) {
+  if (name == "linear") return BetaSchedule::Linear;
+  if (name == "cosine") return BetaSchedule::Cosine;
+  throw core::Error(where + ": noise schedule must be 'linear' or 'cosine', got '" + name + "'");
+}
+
+std::string to_string(BetaSchedule schedule) {
+  return schedule == BetaSchedule::Linear ? "linear" : "cosine";
+}
+
+NoiseSchedule::NoiseSchedule(int64_t steps_in, BetaSchedule kind_in, double beta_start,
+                             double beta_end)
+    : steps(steps_in), kind(kind_in) {
+  core::require(steps >= 1, "noise schedule: steps must be >= 1, got " + std::to_string(steps));
+  core::require(beta_start > 0 && beta_end < 1 && beta_start <= beta_end,
+                "noise schedule: need 0 < beta_start <= beta_end < 1");
+  const auto betas_f64 = kind == BetaSchedule::Linear ? linear_betas(steps, beta_start, beta_end)
+                                                      : cosine_betas(steps);
+  std::vector<double> alphas_f64(steps), prev(steps), sqrt_abar(steps), sqrt_one_minus(steps),
+      post_var(steps), coef_x0(steps), coef_xt(steps);
+  abar_.resize(steps);
+  double product = 1.0;
+  for (int64_t t = 0; t < steps; ++t) {
+    alphas_f64[t] = 1.0 - betas_f64[t];
+    prev[t] = product;
+    product *= alphas_f64[t];
+    abar_[t] = product;
+    sqrt_abar[t] = std::sqrt(product);
+    sqrt_one_minus[t] = std::sqrt(1.0 - product);
+    post_var[t] = betas_f64[t] * (1.0 - prev[t]) / (1.0 - product);
+    coef_x0[t] = std::sqrt(prev[t]) * betas_f64[t] / (1.0 - product);
+    coef_xt[t] = std::sqrt(alphas_f64[t]) * (1.0 - prev[t]) / (1.0 - product);
+  }
+  betas = as_float_tensor(betas_f64);
+  alphas = as_float_tensor(alphas_f64);
+  alphas_cumprod = as_float_tensor(abar_);
+  alphas_cumprod_prev = as_float_tensor(prev);
+  sqrt_alphas_cumprod = as_float_tensor(sqrt_abar);
+  sqrt_one_minus_alphas_cumprod = as_float_tensor(sqrt_one_minus);
+  posterior_variance = as_float_tensor(post_var);
+  posterior_coef_x0 = as_float_tensor(coef_x0);
+  posterior_coef_xt = as_float_tensor(coef_xt);
+}
+
+torch::Tensor q_sample(const NoiseSchedule& schedule, const torch::Tensor& x0,
+                       const torch::Tensor& t, const torch::Tensor& eps) {
+  TORCH_CHECK(x0.dim() == 4 && eps.sizes() == x0.sizes(), "q_sample: x0 ", x0.sizes(), " and eps ",
+              eps.sizes(), " must be the same [B, N, H, W]");
+  TORCH_CHECK(t.dim() == 1 && t.size(0) == x0.size(0), "q_sample: t must be [B]");
+  return per_sample(schedule.sqrt_alphas_cumprod, t, x0) * x0 +
+         per_sample(schedule.sqrt_one_minus_alphas_cumprod, t, x0) * eps;
+}
+
+NoisePredictor as_predictor(UNet unet) {
+  return [unet](const torch::Tensor& x_t, const torch::Tensor& cond,
+                const torch::Tensor& t) mutable { return unet->forward(x_t, cond, t); };
+}
+
+torch::Tensor diffusion_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                             const torch::Tensor& x_gt, const torch::Tensor& cond,
+                             at::Generator& generator) {
+  check_condition(cond);
+  TORCH_CHECK(x_gt.sizes() == cond.sizes(), "diffusion_loss: x_gt ", x_gt.sizes(),
+              " must match cond ", cond.sizes());
+  auto t = torch::randint(0, schedule.steps, {x_gt.size(0)}, generator,
+                          torch::TensorOptions().dtype(torch::kLong));
+  auto eps = torch::randn(x_gt.sizes(), generator, x_gt.options());
+  auto x_t = q_sample(schedule, to_model_space(x_gt.detach()), t, eps);
+  return torch::mse_loss(predictor(x_t, to_model_space(cond), t), eps);
+}
+
+torch::Tensor view_diffusion_loss(UNet& unet, const NoiseSchedule& schedule,
+                                  const torch::Tensor& gt, const torch::Tensor& render,
+                                  int64_t crop_px, at::Generator& generator) {
+  TORCH_CHECK(gt.dim() == 3 && gt.sizes() == render.sizes(), "view_diffusion_loss: gt ", gt.sizes(),
+              " and render ", render.sizes(), " must be the same [H, W, N]");
+  const int64_t h = gt.size(0), w = gt.size(1);
+  const int64_t ch = crop_px > 0 ? std::min(crop_px, h) : h;
+  const int64_t cw = crop_px > 0 ? std::min(crop_px, w) : w;
+  auto corner = [&](int64_t free) {
+    return torch::randint(0, free + 1, {1}, generator, torch::kLong).item<int64_t>();
+  };
+  const int64_t y0 = corner(h - ch), x0 = corner(w - cw);
+  auto crop = [&](const torch::Tensor& image) {
+    return image.slice(0, y0, y0 + ch).slice(1, x0, x0 + cw).permute({2, 0, 1}).unsqueeze(0);
+  };
+  return diffusion_loss(as_predictor(unet), schedule, crop(gt), crop(render), generator);
+}
+
+void SamplerOptions::validate(int64_t schedule_steps, const std::string& where) const {
+  core::require(steps >= 1 && steps <= schedule_steps, where + ": sampler steps must be in [1, " +
+                                                           std::to_string(schedule_steps) +
+                                                           "], got " + std::to_string(steps));
+  core::require(eta >= 0.0 && eta <= 1.0, where + ": eta must be in [0, 1]");
+  core::require(start_strength > 0.0 && start_strength <= 1.0,
+                where + ": start strength must be in (0, 1]");
+}
+
+int64_t start_step(int64_t schedule_steps, double start_strength) {
+  const int64_t t = std::llround(start_strength * double(schedule_steps)) - 1;
+  return std::clamp<int64_t>(t, 0, schedule_steps - 1);
+}
+
+std::vector<int64_t> ddim_timesteps(int64_t t_start, int64_t steps) {
+  TORCH_CHECK(steps >= 1 && t_start >= 0, "ddim_timesteps: need K >= 1 and t_start >= 0");
+  if (steps > t_start) steps = t_start + 1;
+  std::vector<int64_t> out(steps);
+  for (int64_t i = 0; i < steps; ++i) {
+    // Evenly spaced from t_start (i = 0) down to 0 (i = K - 1); rounding keeps
+    // them distinct because the spacing is >= 1.
+    const double u = steps == 1 ? 1.0 : double(steps - 1 - i) / double(steps - 1);
+    out[i] = std::llround(u * double(t_start));
+  }
+  return out;
+}
+
+torch::Tensor ddpm_sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                          const torch::Tensor& cond, uint64_t seed, double start_strength) {
+  check_condition(cond);
+  torch::NoGradGuard no_grad;
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
+  const auto cond_model = to_model_space(cond);
+  auto [x, t_start] = reverse_start(schedule, cond_model, start_strength, generator);
+  const auto& abar = schedule.alphas_cumprod_f64();
+  for (int64_t t = t_start; t >= 0; --t) {
+    auto x0 = predict_x0_eps(predictor, x, cond_model, t, abar[t]).first;
+    const double prev = t > 0 ? abar[t - 1] : 1.0;
+    const double beta = 1.0 - abar[t] / prev;
+    const double coef_x0 = std::sqrt(prev) * beta / (1.0 - abar[t]);
+    const double coef_xt = std::sqrt(1.0 - beta) * (1.0 - prev) / (1.0 - abar[t]);
+    x = coef_x0 * x0 + coef_xt * x;
+    if (t > 0) {
+      const double variance = beta * (1.0 - prev) / (1.0 - abar[t]);
+      x = x + std::sqrt(variance) * torch::randn(x.sizes(), generator, x.options());
+    }
+  }
+  return to_data_space(x);
+}
+
+torch::Tensor ddim_sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                          const torch::Tensor& cond, int64_t steps, double eta, uint64_t seed,
+                          double start_strength) {
+  check_condition(cond);
+  torch::NoGradGuard no_grad;
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
+  const auto cond_model = to_model_space(cond);
+  auto [x, t_start] = reverse_start(schedule, cond_model, start_strength, generator);
+  const auto& abar = schedule.alphas_cumprod_f64();
+  const auto timesteps = ddim_timesteps(t_start, steps);
+  for (size_t i = 0; i < timesteps.size(); ++i) {
+    const int64_t t = timesteps[i];
+    const double prev = i + 1 < timesteps.size() ? abar[timesteps[i + 1]] : 1.0;
+    auto [x0, eps] = predict_x0_eps(predictor, x, cond_model, t, abar[t]);
+    const double sigma = eta * std::sqrt((1.0 - prev) / (1.0 - abar[t]) * (1.0 - abar[t] / prev));
+    x = std::sqrt(prev) * x0 + std::sqrt(std::max(0.0, 1.0 - prev - sigma * sigma)) * eps;
+    if (sigma > 0) x = x + sigma * torch::randn(x.sizes(), generator, x.options());
+  }
+  return to_data_space(x);
+}
+
+torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                     const torch::Tensor& cond, const SamplerOptions& options) {
+  options.validate(schedule.steps, "sampler options");
+  if (options.method == SamplerMethod::Ddpm)
+    return ddpm_sample(predictor, schedule, cond, options.seed, options.start_strength);
+  return ddim_sample(predictor, schedule, cond, options.steps, options.eta, options.seed,
+                     options.start_strength);
+}
+
+torch::Tensor denoise_view(UNet& unet, const NoiseSchedule& schedule, const torch::Tensor& render,
+                           const SamplerOptions& options) {
+  TORCH_CHECK(render.dim() == 3, "denoise_view: render must be [H, W, N], got ", render.sizes());
+  auto cond = render.permute({2, 0, 1}).unsqueeze(0).contiguous();
+  return sample(as_predictor(unet), schedule, cond, options)
+      .squeeze(0)
+      .permute({1, 2, 0})
+      .contiguous();
+}
+
+}  // namespace ddhgs::model

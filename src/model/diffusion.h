@@ -1,0 +1,131 @@
+// Conditional denoising diffusion (DDPM, Ho et al. 2020; DDIM, Song et al.
+// 2021) around the U-Net: noise schedule, forward process, training loss and
+// the reverse-process samplers, conditioned on the Gaussian render.
+//
+// Data space: reflectance in [0, 1]. The diffusion runs in model space
+// x_model = 2 x - 1, so the unit-variance noise matches the data's range;
+// every function here that takes or returns images in [0, 1] says so, and
+// maps internally. Predicted clean images are clipped to [-1, 1] in model
+// space (= [0, 1] in data space) at every reverse step.
+#pragma once
+#include <torch/torch.h>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "model/unet.h"
+
+namespace ddhgs::model {
+
+enum class BetaSchedule { Linear, Cosine };
+
+// "linear" or "cosine"; throws core::Error naming `where` otherwise.
+BetaSchedule parse_beta_schedule(const std::string& name, const std::string& where);
+std::string to_string(BetaSchedule schedule);
+
+// Per-step constants, computed in double precision and stored as float32 [T]
+// tensors (indexed by the 0-based step t; step t adds noise of variance
+// betas[t] to the sample of step t - 1, the clean image being "step -1").
+struct NoiseSchedule {
+  // Linear: betas evenly spaced from beta_start to beta_end (Ho et al.).
+  // Cosine: abar(t) = f(t + 1) / f(0), f(u) = cos^2((u / T + s) / (1 + s) pi / 2),
+  // s = 0.008, betas clipped at 0.999 (Nichol & Dhariwal); beta_start/end unused.
+  explicit NoiseSchedule(int64_t steps = 1000, BetaSchedule kind = BetaSchedule::Linear,
+                         double beta_start = 1e-4, double beta_end = 0.02);
+
+  int64_t steps = 0;  // T
+  BetaSchedule kind = BetaSchedule::Linear;
+  torch::Tensor betas;                          // [T]
+  torch::Tensor alphas;                         // [T] 1 - beta
+  torch::Tensor alphas_cumprod;                 // [T] abar_t = prod_{s <= t} alpha_s
+  torch::Tensor alphas_cumprod_prev;            // [T] abar_{t-1}, 1 at t = 0
+  torch::Tensor sqrt_alphas_cumprod;            // [T]
+  torch::Tensor sqrt_one_minus_alphas_cumprod;  // [T]
+  // q(x_{t-1} | x_t, x_0) = N(coef_x0 x_0 + coef_xt x_t, posterior_variance).
+  torch::Tensor posterior_variance;  // [T] beta_t (1 - abar_{t-1}) / (1 - abar_t)
+  torch::Tensor posterior_coef_x0;   // [T] sqrt(abar_{t-1}) beta_t / (1 - abar_t)
+  torch::Tensor posterior_coef_xt;   // [T] sqrt(alpha_t) (1 - abar_{t-1}) / (1 - abar_t)
+
+  // abar_t in double, for the samplers' per-step scalars.
+  const std::vector<double>& alphas_cumprod_f64() const { return abar_; }
+
+ private:
+  std::vector<double> abar_;
+};
+
+// x_t = sqrt(abar_t) x0 + sqrt(1 - abar_t) eps, per sample; model space.
+torch::Tensor q_sample(const NoiseSchedule& schedule,
+                       const torch::Tensor& x0,    // [B, N, H, W]
+                       const torch::Tensor& t,     // [B] int64 steps in [0, T)
+                       const torch::Tensor& eps);  // [B, N, H, W]
+
+// Predicted noise eps_theta(x_t, t | cond), all in model space. The U-Net is
+// one; tests plug in analytic predictors.
+using NoisePredictor = std::function<torch::Tensor(const torch::Tensor& x_t,   // [B, N, H, W]
+                                                   const torch::Tensor& cond,  // [B, N, H, W]
+                                                   const torch::Tensor& t)>;   // [B] int64
+NoisePredictor as_predictor(UNet unet);
+
+// Mean over elements of (eps - eps_theta(x_t, t | cond))^2 with t uniform in
+// [0, T) per sample and eps standard normal, both drawn from `generator`.
+// x_gt and cond in [0, 1]. Differentiable w.r.t. the predictor's parameters
+// and cond (the render: joint training lets the loss reach the Gaussians).
+torch::Tensor diffusion_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                             const torch::Tensor& x_gt,  // [B, N, H, W]
+                             const torch::Tensor& cond,  // [B, N, H, W]
+                             at::Generator& generator);
+
+// The same on one view, channels-last as the renderer produces it, on one
+// random crop_px x crop_px window (the whole view if it is smaller) shared by
+// both images; crop_px <= 0 uses the whole view.
+torch::Tensor view_diffusion_loss(UNet& unet, const NoiseSchedule& schedule,
+                                  const torch::Tensor& gt,      // [H, W, N] in [0, 1]
+                                  const torch::Tensor& render,  // [H, W, N] in [0, 1]
+                                  int64_t crop_px, at::Generator& generator);
+
+enum class SamplerMethod { Ddpm, Ddim };
+
+struct SamplerOptions {
+  SamplerMethod method = SamplerMethod::Ddim;
+  int64_t steps = 10;  // K, DDIM only (DDPM always runs every step below the start)
+  double eta = 0.0;    // DDIM only: 0 deterministic, 1 = DDPM's posterior variance
+  // In (0, 1]. 1 starts from pure noise at step T - 1; s < 1 starts from the
+  // condition noised to step t_s = round(s T) - 1 and runs only steps <= t_s.
+  double start_strength = 1.0;
+  uint64_t seed = 0;
+
+  // Throws core::Error naming `where` (flag or preset) on bad values.
+  void validate(int64_t schedule_steps, const std::string& where) const;
+};
+
+// The step t_s the reverse process starts from, for a strength in (0, 1].
+int64_t start_step(int64_t schedule_steps, double start_strength);
+// The K DDIM steps, descending from t_start to 0, evenly spaced (all steps
+// when K > t_start).
+std::vector<int64_t> ddim_timesteps(int64_t t_start, int64_t steps);
+
+// Ancestral sampling with the posterior variance, one step at a time from
+// t_s down to 0. cond in [0, 1]; returns [B, N, H, W] in [0, 1].
+torch::Tensor ddpm_sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                          const torch::Tensor& cond,  // [B, N, H, W]
+                          uint64_t seed, double start_strength = 1.0);
+
+// DDIM over ddim_timesteps(t_s, K) with
+// sigma = eta sqrt((1 - abar_prev) / (1 - abar_t)) sqrt(1 - abar_t / abar_prev).
+// With K = T and eta = 1 it is DDPM step for step (same noise draws).
+torch::Tensor ddim_sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                          const torch::Tensor& cond,  // [B, N, H, W]
+                          int64_t steps, double eta, uint64_t seed, double start_strength = 1.0);
+
+// Dispatches on options.method (after validating); cond in [0, 1].
+torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                     const torch::Tensor& cond,  // [B, N, H, W]
+                     const SamplerOptions& options);
+
+// The denoised view for a render, channels-last in and out, [H, W, N] in [0, 1].
+torch::Tensor denoise_view(UNet& unet, const NoiseSchedule& schedule,
+                           const torch::Tensor& render,  // [H, W, N]
+                           const SamplerOptions& options);
+
+}  // namespace ddhgs::model

@@ -1,0 +1,306 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/error.h"
+#include "model/diffusion.h"
+
+using namespace ddhgs;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double value_at(const torch::Tensor& table, int64_t t) {
+  return table[t].item<double>();
+}
+
+torch::Tensor abar_of(const model::NoiseSchedule& schedule, const torch::Tensor& t,
+                      const torch::Tensor& like) {
+  return schedule.alphas_cumprod.index_select(0, t).to(like.dtype()).reshape({-1, 1, 1, 1});
+}
+
+// The exact noise predictor when every sample's clean image is x0 (model
+// space): eps = (x_t - sqrt(abar) x0) / sqrt(1 - abar).
+model::NoisePredictor point_predictor(const model::NoiseSchedule& schedule,
+                                      const torch::Tensor& x0_model) {
+  return [&schedule, x0_model](const torch::Tensor& x_t, const torch::Tensor&,
+                               const torch::Tensor& t) {
+    auto abar = abar_of(schedule, t, x_t);
+    return (x_t - abar.sqrt() * x0_model) / (1 - abar).sqrt();
+  };
+}
+
+// The exact (posterior-mean) noise predictor for pixels drawn independently
+// from N(mean, var) in model space: x_t ~ N(a mean, a^2 var + b^2), so
+// E[eps | x_t] = b (x_t - a mean) / (a^2 var + b^2).
+model::NoisePredictor gaussian_predictor(const model::NoiseSchedule& schedule, double mean,
+                                         double var) {
+  return [&schedule, mean, var](const torch::Tensor& x_t, const torch::Tensor&,
+                                const torch::Tensor& t) {
+    auto abar = abar_of(schedule, t, x_t);
+    auto a = abar.sqrt(), b = (1 - abar).sqrt();
+    return b * (x_t - a * mean) / (abar * var + (1 - abar));
+  };
+}
+
+model::UNetOptions tiny_unet(int64_t bands) {
+  model::UNetOptions o;
+  o.bands = bands;
+  o.base_channels = 8;
+  o.channel_multipliers = {1, 2};
+  return o;
+}
+
+void randomise_output_layer(model::UNet& unet, uint64_t seed) {
+  torch::NoGradGuard no_grad;
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
+  for (auto& p : unet->named_parameters())
+    if (p.key().rfind("output_conv.", 0) == 0)
+      p.value().copy_(0.1 * torch::randn(p.value().sizes(), generator, p.value().options()));
+}
+
+}  // namespace
+
+TEST(NoiseSchedule, LinearConstantsMatchClosedForms) {
+  model::NoiseSchedule s;  // T = 1000, linear 1e-4 .. 0.02
+  ASSERT_EQ(s.steps, 1000);
+  ASSERT_EQ(s.betas.scalar_type(), torch::kFloat32);
+  EXPECT_FLOAT_EQ(value_at(s.betas, 0), 1e-4f);
+  EXPECT_FLOAT_EQ(value_at(s.betas, 999), 0.02f);
+  EXPECT_NEAR(value_at(s.betas, 500), 1e-4 + (0.02 - 1e-4) * 500.0 / 999.0, 1e-9);
+  double product = 1.0;
+  for (int64_t t = 0; t < 1000; ++t) {
+    const double beta = 1e-4 + (0.02 - 1e-4) * double(t) / 999.0;
+    const double prev = product;
+    product *= 1.0 - beta;
+    if (t % 111 != 0 && t != 999) continue;
+    EXPECT_NEAR(value_at(s.alphas, t), 1 - beta, 1e-7) << t;
+    EXPECT_NEAR(value_at(s.alphas_cumprod, t), product, 1e-6 * product + 1e-9) << t;
+    EXPECT_NEAR(value_at(s.alphas_cumprod_prev, t), prev, 1e-6 * prev + 1e-9) << t;
+    EXPECT_NEAR(value_at(s.sqrt_alphas_cumprod, t), std::sqrt(product), 1e-6) << t;
+    EXPECT_NEAR(value_at(s.sqrt_one_minus_alphas_cumprod, t), std::sqrt(1 - product), 1e-6) << t;
+    const double var = beta * (1 - prev) / (1 - product);
+    EXPECT_NEAR(value_at(s.posterior_variance, t), var, 1e-6 * var + 1e-12) << t;
+    EXPECT_NEAR(value_at(s.posterior_coef_x0, t), std::sqrt(prev) * beta / (1 - product), 1e-6)
+        << t;
+    EXPECT_NEAR(value_at(s.posterior_coef_xt, t), std::sqrt(1 - beta) * (1 - prev) / (1 - product),
+                1e-6)
+        << t;
+  }
+  // Known value of the standard DDPM schedule: almost no signal left at T.
+  EXPECT_NEAR(value_at(s.alphas_cumprod, 999), 4.04e-5, 0.01e-5);
+  EXPECT_EQ(value_at(s.posterior_variance, 0), 0.0);
+  EXPECT_EQ(s.alphas_cumprod_f64().size(), 1000u);
+}
+
+TEST(NoiseSchedule, CosineFollowsNicholDhariwal) {
+  model::NoiseSchedule s(1000, model::BetaSchedule::Cosine);
+  auto f = [](double t) {
+    const double c = std::cos((t / 1000.0 + 0.008) / 1.008 * kPi / 2);
+    return c * c;
+  };
+  for (int64_t t : {0, 1, 250, 500, 750, 900}) {
+    const double abar = f(double(t + 1)) / f(0.0);
+    EXPECT_NEAR(value_at(s.alphas_cumprod, t), abar, 1e-6 + 1e-5 * abar) << t;
+    EXPECT_NEAR(value_at(s.betas, t), 1 - f(double(t + 1)) / f(double(t)), 1e-7) << t;
+  }
+  // f(T) = 0 would make the last beta 1: it is clipped.
+  EXPECT_FLOAT_EQ(value_at(s.betas, 999), 0.999f);
+  EXPECT_LE(s.betas.max().item<double>(), 0.999 + 1e-7);
+  EXPECT_EQ(model::parse_beta_schedule("cosine", "x"), model::BetaSchedule::Cosine);
+  EXPECT_THROW(model::parse_beta_schedule("sigmoid", "preset.json"), core::Error);
+}
+
+TEST(NoiseSchedule, QSampleMixesPerSample) {
+  model::NoiseSchedule s;
+  auto x0 = torch::full({2, 1, 2, 2}, 0.5), eps = torch::full({2, 1, 2, 2}, -1.0);
+  auto t = torch::tensor({0, 999});
+  auto x_t = model::q_sample(s, x0, t, eps);
+  for (int b = 0; b < 2; ++b) {
+    const int64_t step = t[b].item<int64_t>();
+    const double abar = s.alphas_cumprod_f64()[step];
+    const double expected = std::sqrt(abar) * 0.5 - std::sqrt(1 - abar);
+    EXPECT_TRUE(torch::allclose(x_t[b], torch::full({1, 2, 2}, expected), 1e-6, 1e-6)) << b;
+  }
+}
+
+TEST(Samplers, TimestepsAndStartSteps) {
+  EXPECT_EQ(model::ddim_timesteps(999, 10),
+            (std::vector<int64_t>{999, 888, 777, 666, 555, 444, 333, 222, 111, 0}));
+  EXPECT_EQ(model::ddim_timesteps(4, 10), (std::vector<int64_t>{4, 3, 2, 1, 0}));
+  EXPECT_EQ(model::ddim_timesteps(7, 1), (std::vector<int64_t>{7}));
+  auto all = model::ddim_timesteps(999, 1000);
+  ASSERT_EQ(all.size(), 1000u);
+  for (int64_t i = 0; i < 1000; ++i) ASSERT_EQ(all[i], 999 - i);
+  EXPECT_EQ(model::start_step(1000, 1.0), 999);
+  EXPECT_EQ(model::start_step(1000, 0.5), 499);
+  EXPECT_EQ(model::start_step(1000, 1e-6), 0);
+
+  model::SamplerOptions bad;
+  bad.steps = 0;
+  EXPECT_THROW(bad.validate(1000, "--steps"), core::Error);
+  bad.steps = 10;
+  bad.eta = 1.5;
+  EXPECT_THROW(bad.validate(1000, "--eta"), core::Error);
+  bad.eta = 0;
+  bad.start_strength = 0;
+  EXPECT_THROW(bad.validate(1000, "--strength"), core::Error);
+}
+
+// With the exact predictor for a single clean image, the deterministic
+// sampler must land on that image from any start.
+TEST(Samplers, PerfectPredictorRecoversThePoint) {
+  model::NoiseSchedule s;
+  torch::manual_seed(10);
+  auto x0 = 0.1 + 0.8 * torch::rand({1, 3, 8, 8});
+  auto predictor = point_predictor(s, x0 * 2 - 1);
+  auto cond = torch::rand({1, 3, 8, 8});
+  for (double strength : {1.0, 0.4}) {
+    auto out = model::ddim_sample(predictor, s, cond, 10, 0.0, 3, strength);
+    EXPECT_LT((out - x0).abs().max().item<double>(), 1e-4) << strength;
+  }
+  auto ddpm = model::ddpm_sample(predictor, s, cond, 4, 0.2);
+  EXPECT_LT((ddpm - x0).abs().max().item<double>(), 1e-4);
+}
+
+// Data: every pixel independently N(0.45, 0.08^2) in [0, 1]. DDPM, DDIM with
+// K = T and eta = 1, and deterministic DDIM with K = T must all reproduce
+// that distribution.
+TEST(Samplers, GaussianDataDistributionIsReproduced) {
+  model::NoiseSchedule s;
+  const double mean = 0.45, sd = 0.08;
+  auto predictor = gaussian_predictor(s, 2 * mean - 1, 4 * sd * sd);
+  auto cond = torch::zeros({1, 1, 100, 100});
+  auto ddpm = model::ddpm_sample(predictor, s, cond, 1);
+  auto ddim_stochastic = model::ddim_sample(predictor, s, cond, 1000, 1.0, 2);
+  auto ddim_deterministic = model::ddim_sample(predictor, s, cond, 1000, 0.0, 3);
+  // 10^4 samples: standard errors 0.0008 (mean) and 0.0006 (std).
+  for (const auto& [name, x] : std::vector<std::pair<std::string, torch::Tensor>>{
+           {"ddpm", ddpm}, {"ddim eta=1", ddim_stochastic}, {"ddim eta=0", ddim_deterministic}}) {
+    EXPECT_NEAR(x.mean().item<double>(), mean, 0.004) << name;
+    EXPECT_NEAR(x.std().item<double>(), sd, 0.004) << name;
+  }
+  EXPECT_NEAR(ddpm.mean().item<double>(), ddim_stochastic.mean().item<double>(), 0.005);
+  EXPECT_NEAR(ddpm.std().item<double>(), ddim_stochastic.std().item<double>(), 0.005);
+  // Same seed: DDIM(K = T, eta = 1) takes DDPM's steps with DDPM's noise draws.
+  auto same_seed = model::ddim_sample(predictor, s, cond, 1000, 1.0, 1);
+  EXPECT_LT((same_seed - ddpm).abs().max().item<double>(), 1e-3);
+}
+
+// For Gaussian data one deterministic DDIM step is affine: the centred sample
+// x - a m is scaled by r = (a' a v + b' b) / (a^2 v + b^2) (a = sqrt(abar_t),
+// b = sqrt(1 - abar_t), primes at the next step). r is the cosine between
+// (a sqrt(v), b) and (a' sqrt(v), b'), so few large steps shrink the spread:
+// the sampler's std must equal the product of the r's.
+TEST(Samplers, FewStepDdimMatchesItsAnalyticMapOnGaussianData) {
+  model::NoiseSchedule s;
+  const double mean = 0.45, sd = 0.08, m = 2 * mean - 1, v = 4 * sd * sd;
+  auto predictor = gaussian_predictor(s, m, v);
+  auto cond = torch::zeros({1, 1, 100, 100});
+  const auto& abar = s.alphas_cumprod_f64();
+  const auto steps = model::ddim_timesteps(999, 10);
+  double gain = 1;
+  for (size_t i = 0; i < steps.size(); ++i) {
+    const double a2 = abar[steps[i]], p2 = i + 1 < steps.size() ? abar[steps[i + 1]] : 1.0;
+    gain *= (std::sqrt(a2 * p2) * v + std::sqrt((1 - a2) * (1 - p2))) / (a2 * v + 1 - a2);
+  }
+  const double expected_mean = (m - std::sqrt(abar[999]) * m * gain + 1) / 2;
+  auto x = model::ddim_sample(predictor, s, cond, 10, 0.0, 4);
+  EXPECT_NEAR(x.mean().item<double>(), expected_mean, 0.003);
+  EXPECT_NEAR(x.std().item<double>(), gain / 2, 0.02 * gain / 2);
+  EXPECT_LT(gain / 2, 0.95 * sd);  // the shrinkage is real, not a tolerance artefact
+}
+
+TEST(Samplers, SeededSamplingIsDeterministic) {
+  torch::manual_seed(11);
+  model::UNet unet(tiny_unet(3));
+  randomise_output_layer(unet, 12);
+  model::NoiseSchedule s;
+  auto render = torch::rand({9, 7, 3});
+  model::SamplerOptions o;
+  o.steps = 5;
+  o.eta = 0.5;
+  o.seed = 77;
+  auto a = model::denoise_view(unet, s, render, o);
+  auto b = model::denoise_view(unet, s, render, o);
+  ASSERT_EQ(a.sizes(), render.sizes());
+  EXPECT_TRUE(torch::equal(a, b));
+  EXPECT_GE(a.min().item<double>(), 0.0);
+  EXPECT_LE(a.max().item<double>(), 1.0);
+  o.seed = 78;
+  EXPECT_FALSE(torch::equal(a, model::denoise_view(unet, s, render, o)));
+  o.method = model::SamplerMethod::Ddpm;
+  o.start_strength = 0.01;  // 10 steps
+  auto c = model::denoise_view(unet, s, render, o);
+  EXPECT_TRUE(torch::equal(c, model::denoise_view(unet, s, render, o)));
+}
+
+// A predictor that knows the clean image is the condition drives the loss to
+// zero: x_gt and cond are mapped the same way and t is shared.
+TEST(DiffusionLoss, ZeroForTheExactPredictorAndOneForZeroNoise) {
+  model::NoiseSchedule s;
+  torch::manual_seed(13);
+  auto x = torch::rand({4, 2, 6, 6});
+  auto exact = [&s](const torch::Tensor& x_t, const torch::Tensor& cond, const torch::Tensor& t) {
+    auto abar = abar_of(s, t, x_t);
+    return (x_t - abar.sqrt() * cond) / (1 - abar).sqrt();
+  };
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(5);
+  EXPECT_LT(model::diffusion_loss(exact, s, x, x, generator).item<double>(), 1e-6);
+  auto zero = [](const torch::Tensor& x_t, const torch::Tensor&, const torch::Tensor&) {
+    return torch::zeros_like(x_t);
+  };
+  auto big = torch::rand({8, 1, 50, 50});
+  EXPECT_NEAR(model::diffusion_loss(zero, s, big, big, generator).item<double>(), 1.0, 0.02);
+}
+
+TEST(DiffusionLoss, AdamStepsLowerTheLossOnAFixedBatch) {
+  torch::manual_seed(14);
+  model::UNet unet(tiny_unet(3));
+  model::NoiseSchedule s;
+  auto gt = torch::rand({4, 3, 16, 16});
+  auto cond = (gt + 0.05 * torch::randn({4, 3, 16, 16})).clamp(0, 1);
+  auto predictor = model::as_predictor(unet);
+  auto fixed_loss = [&] {
+    torch::NoGradGuard no_grad;
+    auto generator = at::make_generator<at::CPUGeneratorImpl>(99);
+    double total = 0;
+    for (int i = 0; i < 4; ++i)
+      total += model::diffusion_loss(predictor, s, gt, cond, generator).item<double>();
+    return total / 4;
+  };
+  const double before = fixed_loss();
+  torch::optim::Adam adam(unet->parameters(), torch::optim::AdamOptions(2e-3));
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(1);
+  for (int step = 0; step < 40; ++step) {
+    adam.zero_grad();
+    model::diffusion_loss(predictor, s, gt, cond, generator).backward();
+    adam.step();
+  }
+  const double after = fixed_loss();
+  EXPECT_LT(after, 0.7 * before) << before << " -> " << after;
+}
+
+TEST(DiffusionLoss, ViewLossCropsBothImagesAtOneWindowAndReachesTheRender) {
+  torch::manual_seed(15);
+  model::UNet unet(tiny_unet(3));
+  randomise_output_layer(unet, 16);
+  model::NoiseSchedule s;
+  auto gt = torch::rand({20, 17, 3});
+  auto render = torch::rand({20, 17, 3}).requires_grad_(true);
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(17);
+  auto loss = model::view_diffusion_loss(unet, s, gt, render, 8, generator);
+  ASSERT_EQ(loss.dim(), 0);
+  loss.backward();
+  auto touched = render.grad().abs().sum(2) > 0;  // [H, W]
+  EXPECT_EQ(touched.sum().item<int64_t>(), 64);
+  auto rows = touched.any(1).nonzero(), cols = touched.any(0).nonzero();
+  EXPECT_EQ(rows.size(0), 8);
+  EXPECT_EQ(cols.size(0), 8);
+  EXPECT_EQ(rows.max().item<int64_t>() - rows.min().item<int64_t>(), 7);
+
+  render.mutable_grad().zero_();
+  model::view_diffusion_loss(unet, s, gt, render, 64, generator).backward();
+  EXPECT_EQ((render.grad().abs().sum(2) > 0).sum().item<int64_t>(), 20 * 17);
+}
