@@ -65,8 +65,19 @@ void write_npy(const std::filesystem::path& path, const torch::Tensor& data,
                SampleType type_if_u16 = SampleType::I16);
 enum class EnviInterleave { BSQ, BIL, BIP };
 // Writes path (.hdr) and its data file (same stem, .img).
+// dtype uint8, int16 (data type 12 when type_if_u16 is U16), int32, float16
+// (stored as float32), float32 or float64; little-endian.
 void write_envi(const std::filesystem::path& hdr_path, const torch::Tensor& data,
                 const std::vector<double>& wavelengths_nm,
-                EnviInterleave interleave = EnviInterleave::BSQ);
+                EnviInterleave interleave = EnviInterleave::BSQ,
+                SampleType type_if_u16 = SampleType::I16);
+
+// Bands as the samples of one page (contiguous or separate planes), or one
+// single-sample page per band. dtype uint8, int16 (unsigned when type_if_u16 is
+// U16), int32, float32 or float64.
+enum class TiffLayout { Contiguous, Separate, Pages };
+void write_tiff(const std::filesystem::path& path, const torch::Tensor& data,
+                TiffLayout layout = TiffLayout::Contiguous,
+                SampleType type_if_u16 = SampleType::I16);
 
 }  // namespace ddhgs::io
