@@ -67,12 +67,17 @@ class Scene {
   // Internal: set by load_scene.
   LoadOptions options;
   std::vector<int> band_index;  // source band of each loaded band before binning
+  int64_t source_bands = 0;     // bands of every cube file before selection
 
  private:
-  torch::Tensor load_view(const std::filesystem::path& path) const;
+  // The cube at path, reduced to target's size (area averaging when the file
+  // is at full resolution), band-selected and binned, in its stored type.
+  Cube load_view(const std::filesystem::path& path, const core::Intrinsics& target) const;
+  // Cached load_view; evicts least recently used entries beyond cache_mb.
+  Cube cached_view(const std::filesystem::path& path, const core::Intrinsics& target) const;
   mutable std::mutex mutex_;
-  mutable std::list<std::string> lru_;
-  mutable std::unordered_map<std::string, torch::Tensor> cache_;
+  mutable std::list<std::string> lru_;  // most recently used first
+  mutable std::unordered_map<std::string, Cube> cache_;
   mutable size_t cached_bytes_ = 0;
 };
 
@@ -82,6 +87,19 @@ std::unique_ptr<Scene> load_scene(const std::filesystem::path& dir,
                                   const LoadOptions& options = {});
 
 // The Hyper-NeRF rule: train = floor(linspace(0, n-1, ceil(0.9 n))), test = rest.
+// Computed in double exactly as numpy/nerfstudio do, so indices match theirs.
 void hypernerf_split(int n, std::vector<int>& train, std::vector<int>& test);
+
+// Area-averaging factor that brings a cube of height x width pixels to the
+// size of target: 1 when it already has it (e.g. from an images_<d>/ folder),
+// downscale when it is at full resolution; otherwise core::Error naming path.
+int area_factor(const std::filesystem::path& path, int64_t height, int64_t width,
+                const core::Intrinsics& target, int downscale);
+
+// core::Error naming path when a cube's band count differs from the scene's.
+void require_bands(const std::filesystem::path& path, int64_t bands, int64_t expected);
+
+// Wavelengths (nm) given to the three bands of an RGB scene.
+std::vector<double> rgb_wavelengths_nm();
 
 }  // namespace ddhgs::io
