@@ -51,19 +51,28 @@ torch::Tensor full_step(int64_t batch, int64_t t) {
   return torch::full({batch}, t, torch::kLong);
 }
 
+// Where the reverse process begins: pure noise for a full-strength start,
+// else the condition noised to t_s (the render already holds the scene, so
+// fewer steps are needed). Everything in model space.
 struct ReverseStart {
-  torch::Tensor x;  // [B, N, H, W] model space
+  at::Generator generator;
+  torch::Tensor cond;  // [B, N, H, W]
+  torch::Tensor x;     // [B, N, H, W]
   int64_t t_start;
 };
 
-// Pure noise for a full-strength start, else the condition noised to t_s:
-// the render already holds the scene, so fewer steps are needed.
-ReverseStart reverse_start(const NoiseSchedule& schedule, const torch::Tensor& cond_model,
-                           double start_strength, at::Generator& generator) {
-  const int64_t t_start = start_step(schedule.steps, start_strength);
-  auto noise = torch::randn(cond_model.sizes(), generator, cond_model.options());
-  if (start_strength >= 1.0) return {noise, t_start};
-  return {q_sample(schedule, cond_model, full_step(cond_model.size(0), t_start), noise), t_start};
+ReverseStart reverse_start(const NoiseSchedule& schedule, const torch::Tensor& cond, uint64_t seed,
+                           double start_strength) {
+  TORCH_CHECK(cond.dim() == 4, "diffusion: condition must be [B, N, H, W], got ", cond.sizes());
+  ReverseStart r{at::make_generator<at::CPUGeneratorImpl>(seed),
+                 to_model_space(cond),
+                 {},
+                 start_step(schedule.steps, start_strength)};
+  auto noise = torch::randn(cond.sizes(), r.generator, cond.options());
+  r.x = start_strength >= 1.0
+            ? noise
+            : q_sample(schedule, r.cond, full_step(cond.size(0), r.t_start), noise);
+  return r;
 }
 
 // x0 implied by the predicted noise, clipped to the data range, and the noise
@@ -76,10 +85,6 @@ std::pair<torch::Tensor, torch::Tensor> predict_x0_eps(const NoisePredictor& pre
   const double a = std::sqrt(abar), b = std::sqrt(1.0 - abar);
   auto x0 = ((x - b * eps) / a).clamp(-1.0, 1.0);
   return {x0, (x - a * x0) / b};
-}
-
-void check_condition(const torch::Tensor& cond) {
-  TORCH_CHECK(cond.dim() == 4, "diffusion: condition must be [B, N, H, W], got ", cond.sizes());
 }
 
 }  // namespace
@@ -145,9 +150,8 @@ NoisePredictor as_predictor(UNet unet) {
 torch::Tensor diffusion_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                              const torch::Tensor& x_gt, const torch::Tensor& cond,
                              at::Generator& generator) {
-  check_condition(cond);
-  TORCH_CHECK(x_gt.sizes() == cond.sizes(), "diffusion_loss: x_gt ", x_gt.sizes(),
-              " must match cond ", cond.sizes());
+  TORCH_CHECK(cond.dim() == 4 && x_gt.sizes() == cond.sizes(), "diffusion_loss: x_gt ",
+              x_gt.sizes(), " must match cond ", cond.sizes());
   auto t = torch::randint(0, schedule.steps, {x_gt.size(0)}, generator,
                           torch::TensorOptions().dtype(torch::kLong));
   auto eps = torch::randn(x_gt.sizes(), generator, x_gt.options());
@@ -202,11 +206,8 @@ std::vector<int64_t> ddim_timesteps(int64_t t_start, int64_t steps) {
 
 torch::Tensor ddpm_sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                           const torch::Tensor& cond, uint64_t seed, double start_strength) {
-  check_condition(cond);
   torch::NoGradGuard no_grad;
-  auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
-  const auto cond_model = to_model_space(cond);
-  auto [x, t_start] = reverse_start(schedule, cond_model, start_strength, generator);
+  auto [generator, cond_model, x, t_start] = reverse_start(schedule, cond, seed, start_strength);
   const auto& abar = schedule.alphas_cumprod_f64();
   for (int64_t t = t_start; t >= 0; --t) {
     auto x0 = predict_x0_eps(predictor, x, cond_model, t, abar[t]).first;
@@ -226,11 +227,8 @@ torch::Tensor ddpm_sample(const NoisePredictor& predictor, const NoiseSchedule& 
 torch::Tensor ddim_sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                           const torch::Tensor& cond, int64_t steps, double eta, uint64_t seed,
                           double start_strength) {
-  check_condition(cond);
   torch::NoGradGuard no_grad;
-  auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
-  const auto cond_model = to_model_space(cond);
-  auto [x, t_start] = reverse_start(schedule, cond_model, start_strength, generator);
+  auto [generator, cond_model, x, t_start] = reverse_start(schedule, cond, seed, start_strength);
   const auto& abar = schedule.alphas_cumprod_f64();
   const auto timesteps = ddim_timesteps(t_start, steps);
   for (size_t i = 0; i < timesteps.size(); ++i) {

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "denoiser_fixtures.h"
 #include "model/diffusion.h"
 
 using namespace ddhgs;
@@ -42,22 +43,6 @@ model::NoisePredictor gaussian_predictor(const model::NoiseSchedule& schedule, d
     auto a = abar.sqrt(), b = (1 - abar).sqrt();
     return b * (x_t - a * mean) / (abar * var + (1 - abar));
   };
-}
-
-model::UNetOptions tiny_unet(int64_t bands) {
-  model::UNetOptions o;
-  o.bands = bands;
-  o.base_channels = 8;
-  o.channel_multipliers = {1, 2};
-  return o;
-}
-
-void randomise_output_layer(model::UNet& unet, uint64_t seed) {
-  torch::NoGradGuard no_grad;
-  auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
-  for (auto& p : unet->named_parameters())
-    if (p.key().rfind("output_conv.", 0) == 0)
-      p.value().copy_(0.1 * torch::randn(p.value().sizes(), generator, p.value().options()));
 }
 
 }  // namespace
@@ -213,9 +198,7 @@ TEST(Samplers, FewStepDdimMatchesItsAnalyticMapOnGaussianData) {
 }
 
 TEST(Samplers, SeededSamplingIsDeterministic) {
-  torch::manual_seed(11);
-  model::UNet unet(tiny_unet(3));
-  randomise_output_layer(unet, 12);
+  auto unet = test::live_unet(test::tiny_unet_options(3), 11);
   model::NoiseSchedule s;
   auto render = torch::rand({9, 7, 3});
   model::SamplerOptions o;
@@ -257,7 +240,7 @@ TEST(DiffusionLoss, ZeroForTheExactPredictorAndOneForZeroNoise) {
 
 TEST(DiffusionLoss, AdamStepsLowerTheLossOnAFixedBatch) {
   torch::manual_seed(14);
-  model::UNet unet(tiny_unet(3));
+  model::UNet unet(test::tiny_unet_options(3));
   model::NoiseSchedule s;
   auto gt = torch::rand({4, 3, 16, 16});
   auto cond = (gt + 0.05 * torch::randn({4, 3, 16, 16})).clamp(0, 1);
@@ -283,9 +266,7 @@ TEST(DiffusionLoss, AdamStepsLowerTheLossOnAFixedBatch) {
 }
 
 TEST(DiffusionLoss, ViewLossCropsBothImagesAtOneWindowAndReachesTheRender) {
-  torch::manual_seed(15);
-  model::UNet unet(tiny_unet(3));
-  randomise_output_layer(unet, 16);
+  auto unet = test::live_unet(test::tiny_unet_options(3), 15);
   model::NoiseSchedule s;
   auto gt = torch::rand({20, 17, 3});
   auto render = torch::rand({20, 17, 3}).requires_grad_(true);

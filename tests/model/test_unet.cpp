@@ -3,35 +3,13 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "denoiser_fixtures.h"
 #include "model/unet.h"
 #include "support/test_support.h"
 
 using namespace ddhgs;
 
-namespace {
-
-model::UNetOptions tiny_options(int64_t bands, std::vector<int64_t> multipliers = {1, 2},
-                                bool attention = false) {
-  model::UNetOptions o;
-  o.bands = bands;
-  o.base_channels = 8;
-  o.channel_multipliers = std::move(multipliers);
-  o.blocks_per_level = 1;
-  o.attention = attention;
-  return o;
-}
-
-// The zero last layer hides everything upstream; tests that need a live
-// network give it random weights.
-void randomise_output_layer(model::UNet& unet, uint64_t seed) {
-  torch::NoGradGuard no_grad;
-  auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
-  for (auto& p : unet->named_parameters())
-    if (p.key().rfind("output_conv.", 0) == 0)
-      p.value().copy_(0.1 * torch::randn(p.value().sizes(), generator, p.value().options()));
-}
-
-}  // namespace
+namespace {}  // namespace
 
 TEST(UNet, GroupCountDividesChannelsWithAtLeastFourPerGroup) {
   for (int64_t c = 1; c <= 600; ++c) {
@@ -59,7 +37,7 @@ TEST(UNet, TimestepEmbeddingMatchesHandValues) {
 TEST(UNet, KeepsShapesForOddSizesAndManyBandCounts) {
   torch::manual_seed(1);
   for (int64_t bands : {1, 3, 17, 40, 128, 141}) {
-    model::UNet unet(tiny_options(bands));
+    model::UNet unet(test::tiny_unet_options(bands));
     for (auto [h, w] : std::vector<std::pair<int64_t, int64_t>>{{16, 16}, {15, 11}, {1, 3}}) {
       auto x = torch::rand({2, bands, h, w});
       auto out = unet->forward(x, torch::rand({2, bands, h, w}), torch::tensor({0, 999}));
@@ -69,9 +47,7 @@ TEST(UNet, KeepsShapesForOddSizesAndManyBandCounts) {
 }
 
 TEST(UNet, ThreeLevelsWithAttentionKeepShapes) {
-  torch::manual_seed(2);
-  model::UNet unet(tiny_options(5, {1, 2, 4}, true));
-  randomise_output_layer(unet, 3);
+  auto unet = test::live_unet(test::tiny_unet_options(5, {1, 2, 4}, true), 2);
   EXPECT_EQ(unet->options().size_multiple(), 4);
   auto x = torch::rand({1, 5, 13, 7});
   auto out = unet->forward(x, torch::rand({1, 5, 13, 7}), torch::tensor({10}));
@@ -81,16 +57,14 @@ TEST(UNet, ThreeLevelsWithAttentionKeepShapes) {
 }
 
 TEST(UNet, StartsAtPredictingZeroNoise) {
-  model::UNet unet(tiny_options(3));
+  model::UNet unet(test::tiny_unet_options(3));
   auto out =
       unet->forward(torch::rand({2, 3, 8, 8}), torch::rand({2, 3, 8, 8}), torch::tensor({1, 2}));
   EXPECT_EQ(out.abs().max().item<double>(), 0.0);
 }
 
 TEST(UNet, OutputDependsOnTimestepAndCondition) {
-  torch::manual_seed(4);
-  model::UNet unet(tiny_options(2));
-  randomise_output_layer(unet, 5);
+  auto unet = test::live_unet(test::tiny_unet_options(2), 4);
   auto x = torch::rand({1, 2, 8, 8}), cond = torch::rand({1, 2, 8, 8});
   auto base = unet->forward(x, cond, torch::tensor({100}));
   EXPECT_GT((base - unet->forward(x, cond, torch::tensor({700}))).abs().max().item<double>(), 1e-4);
@@ -101,10 +75,8 @@ TEST(UNet, OutputDependsOnTimestepAndCondition) {
 // Gradients w.r.t. the condition (the render) and a weight, against central
 // finite differences in double precision.
 TEST(UNet, GradientsMatchFiniteDifferences) {
-  torch::manual_seed(6);
-  model::UNet unet(tiny_options(2, {1, 2}, true));
+  auto unet = test::live_unet(test::tiny_unet_options(2, {1, 2}, true), 6);
   unet->to(torch::kFloat64);
-  randomise_output_layer(unet, 7);
   auto opts = torch::TensorOptions().dtype(torch::kFloat64);
   auto x = torch::rand({1, 2, 7, 5}, opts);
   auto cond = torch::rand({1, 2, 7, 5}, opts).requires_grad_(true);
@@ -125,6 +97,15 @@ TEST(UNet, GradientsMatchFiniteDifferences) {
     const double fd = (objective(plus).item<double>() - objective(minus).item<double>()) / (2 * h);
     EXPECT_NEAR(flat_grad[i].item<double>(), fd, 1e-6 + 1e-5 * std::abs(fd)) << "cond[" << i << "]";
   }
+  // A weight of the first level's first block, so upstream layers train too.
+  auto weight = unet->named_parameters()["down.0.conv1.weight"];
+  const double analytic = weight.grad().view(-1)[5].item<double>();
+  ASSERT_NE(analytic, 0.0);
+  weight.view(-1)[5] += h;
+  const double up = objective(cond).item<double>();
+  weight.view(-1)[5] -= 2 * h;
+  const double down = objective(cond).item<double>();
+  EXPECT_NEAR(analytic, (up - down) / (2 * h), 1e-6 + 1e-5 * std::abs(analytic));
 }
 
 TEST(UNet, OptionsFromJsonReadPresetKeysAndRejectBadValues) {
@@ -149,9 +130,7 @@ TEST(UNet, OptionsFromJsonReadPresetKeysAndRejectBadValues) {
 }
 
 TEST(UNet, CheckpointRoundTripRestoresOptionsAndOutputs) {
-  torch::manual_seed(8);
-  model::UNet unet(tiny_options(4, {1, 2, 2}, true));
-  randomise_output_layer(unet, 9);
+  auto unet = test::live_unet(test::tiny_unet_options(4, {1, 2, 2}, true), 8);
   const auto file = test::temp_dir("unet_roundtrip") / "ckpt.pt";
   {
     torch::serialize::OutputArchive archive;
