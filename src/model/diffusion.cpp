@@ -99,9 +99,9 @@ std::string to_string(BetaSchedule schedule) {
   return schedule == BetaSchedule::Linear ? "linear" : "cosine";
 }
 
-NoiseSchedule::NoiseSchedule(int64_t steps_in, BetaSchedule kind_in, double beta_start,
-                             double beta_end)
-    : steps(steps_in), kind(kind_in) {
+NoiseSchedule::NoiseSchedule(int64_t steps_in, BetaSchedule kind_in, double beta_start_in,
+                             double beta_end_in)
+    : steps(steps_in), kind(kind_in), beta_start(beta_start_in), beta_end(beta_end_in) {
   core::require(steps >= 1, "noise schedule: steps must be >= 1, got " + std::to_string(steps));
   core::require(beta_start > 0 && beta_end < 1 && beta_start <= beta_end,
                 "noise schedule: need 0 < beta_start <= beta_end < 1");
@@ -259,6 +259,36 @@ torch::Tensor denoise_view(UNet& unet, const NoiseSchedule& schedule, const torc
       .squeeze(0)
       .permute({1, 2, 0})
       .contiguous();
+}
+
+void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& key,
+                   Denoiser& denoiser) {
+  const auto& s = denoiser.schedule;
+  const nlohmann::json schedule = {{"steps", s.steps},
+                                   {"kind", to_string(s.kind)},
+                                   {"beta_start", s.beta_start},
+                                   {"beta_end", s.beta_end}};
+  archive.write(key + "_schedule_json", c10::IValue(schedule.dump()));
+  save_unet(archive, key, denoiser.unet);
+}
+
+Denoiser load_denoiser(torch::serialize::InputArchive& archive, const std::string& key,
+                       const std::filesystem::path& file) {
+  c10::IValue stored;
+  core::require(archive.try_read(key + "_schedule_json", stored) && stored.isString(), file,
+                "denoiser '" + key + "' has no noise schedule");
+  Denoiser denoiser;
+  try {
+    const auto j = nlohmann::json::parse(stored.toStringRef());
+    denoiser.schedule =
+        NoiseSchedule(j.at("steps").get<int64_t>(),
+                      parse_beta_schedule(j.at("kind").get<std::string>(), file.string()),
+                      j.at("beta_start").get<double>(), j.at("beta_end").get<double>());
+  } catch (const nlohmann::json::exception& e) {
+    throw core::Error(file, "denoiser noise schedule is malformed: " + std::string(e.what()));
+  }
+  denoiser.unet = load_unet(archive, key, file);
+  return denoiser;
 }
 
 }  // namespace ddhgs::model

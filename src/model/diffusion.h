@@ -10,6 +10,7 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <vector>
@@ -36,6 +37,7 @@ struct NoiseSchedule {
 
   int64_t steps = 0;  // T
   BetaSchedule kind = BetaSchedule::Linear;
+  double beta_start = 0, beta_end = 0;          // as constructed (linear only)
   torch::Tensor betas;                          // [T]
   torch::Tensor alphas;                         // [T] 1 - beta
   torch::Tensor alphas_cumprod;                 // [T] abar_t = prod_{s <= t} alpha_s
@@ -117,6 +119,19 @@ torch::Tensor ddpm_sample(const NoisePredictor& predictor, const NoiseSchedule& 
 torch::Tensor ddim_sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                           const torch::Tensor& cond,  // [B, N, H, W]
                           int64_t steps, double eta, uint64_t seed, double start_strength = 1.0);
+
+// What a trained denoiser needs at inference: the network and the schedule it
+// was trained with. Checkpoints store both, so eval cannot mix schedules.
+struct Denoiser {
+  UNet unet{nullptr};
+  NoiseSchedule schedule;
+};
+
+void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& key,
+                   Denoiser& denoiser);
+// Throws core::Error naming `file` when the key is missing or malformed.
+Denoiser load_denoiser(torch::serialize::InputArchive& archive, const std::string& key,
+                       const std::filesystem::path& file);
 
 // Dispatches on options.method (after validating); cond in [0, 1].
 torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,

@@ -5,6 +5,7 @@
 #include "core/error.h"
 #include "denoiser_fixtures.h"
 #include "model/diffusion.h"
+#include "support/test_support.h"
 
 using namespace ddhgs;
 
@@ -284,4 +285,27 @@ TEST(DiffusionLoss, ViewLossCropsBothImagesAtOneWindowAndReachesTheRender) {
   render.mutable_grad().zero_();
   model::view_diffusion_loss(unet, s, gt, render, 64, generator).backward();
   EXPECT_EQ((render.grad().abs().sum(2) > 0).sum().item<int64_t>(), 20 * 17);
+}
+
+TEST(Denoiser, CheckpointKeepsTheScheduleWithTheNetwork) {
+  model::Denoiser denoiser{test::live_unet(test::tiny_unet_options(2), 18),
+                           model::NoiseSchedule(500, model::BetaSchedule::Cosine)};
+  const auto file = test::temp_dir("denoiser_roundtrip") / "ckpt.pt";
+  {
+    torch::serialize::OutputArchive archive;
+    model::save_denoiser(archive, "denoiser", denoiser);
+    archive.save_to(file.string());
+  }
+  torch::serialize::InputArchive archive;
+  archive.load_from(file.string());
+  auto loaded = model::load_denoiser(archive, "denoiser", file);
+  EXPECT_EQ(loaded.schedule.steps, 500);
+  EXPECT_EQ(loaded.schedule.kind, model::BetaSchedule::Cosine);
+  EXPECT_TRUE(torch::equal(loaded.schedule.betas, denoiser.schedule.betas));
+  model::SamplerOptions o;
+  o.seed = 5;
+  auto render = torch::rand({6, 5, 2});
+  EXPECT_TRUE(torch::equal(model::denoise_view(denoiser.unet, denoiser.schedule, render, o),
+                           model::denoise_view(loaded.unet, loaded.schedule, render, o)));
+  EXPECT_THROW(model::load_denoiser(archive, "other", file), core::Error);
 }
