@@ -28,9 +28,11 @@ Cube read_pt(const fs::path& path, const CubeReadOptions& options) {
   try {
     value = torch::pickle_load(std::vector<char>(bytes.begin(), bytes.end()));
   } catch (const c10::Error& e) {
-    throw core::Error(path, "not a readable torch.save file: " + first_line(e.what()));
+    throw core::Error(path,
+                      "not a readable torch.save file holding one tensor: " + first_line(e.what()));
   } catch (const std::exception& e) {
-    throw core::Error(path, "not a readable torch.save file: " + first_line(e.what()));
+    throw core::Error(path,
+                      "not a readable torch.save file holding one tensor: " + first_line(e.what()));
   }
   if (!value.isTensor())
     throw core::Error(path, "holds a " + value.tagKind() + ", expected a single tensor");

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <map>
 #include <string>
 
 #include "core/error.h"
@@ -38,8 +39,13 @@ inline void expect_error_naming(const std::function<void()>& fn, const std::stri
 }
 
 // Whether /usr/bin/python3 can import the module (numpy, torch).
+// Cached: importing torch takes seconds.
 inline bool python_has(const std::string& module) {
-  return run_command(python() + " -c 'import " + module + "'") == 0;
+  static std::map<std::string, bool> known;
+  auto it = known.find(module);
+  if (it == known.end())
+    it = known.emplace(module, run_command(python() + " -c 'import " + module + "'") == 0).first;
+  return it->second;
 }
 
 }  // namespace ddhgs::test
