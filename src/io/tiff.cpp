@@ -49,6 +49,10 @@ class TiffFile {
     tif_ = nullptr;
     TIFFClose(tif);
   }
+  // libtiff reports some damage (a broken page chain) only through the handler.
+  void require_no_error(const fs::path& named) const {
+    if (!error_.empty()) fail(named, "corrupt TIFF file");
+  }
   [[noreturn]] void fail(const fs::path& named, const std::string& what) const {
     throw core::Error(named, what + (error_.empty() ? "" : " (" + error_ + ")"));
   }
@@ -109,6 +113,7 @@ TiffLayoutInfo inspect(TiffFile& file, const fs::path& path) {
     throw core::Error(path, "TIFF page has no width or height");
   info.type = sample_type(info.first, path);
   int pages = TIFFNumberOfDirectories(tif);
+  file.require_no_error(path);
   info.page_per_band = pages > 1 && info.first.samples == 1;
   info.bands = info.page_per_band ? pages : info.first.samples;
   if (pages > 1 && !info.page_per_band)
@@ -202,6 +207,7 @@ Cube read_tiff(const fs::path& path) {
       file.fail(path, "cannot read TIFF page " + std::to_string(page + 1));
     read_page(file, page_format(file.get()), page, cube.data, path);
   }
+  file.require_no_error(path);
   require_finite(cube.data, path);
   return cube;
 }
