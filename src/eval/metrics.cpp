@@ -1,0 +1,163 @@
+#include "eval/metrics.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace ddhgs::eval {
+namespace {
+
+constexpr double kMinMse = 1e-10;  // 10 log10(1 / 1e-10) = kMaxPsnrDb
+constexpr int kWindow = 11;        // SSIM window side, pixels
+constexpr double kSigma = 1.5;     // SSIM window standard deviation, pixels
+constexpr double kC1 = 0.01 * 0.01;
+constexpr double kC2 = 0.03 * 0.03;
+
+std::string shape_string(const torch::Tensor& t) {
+  std::ostringstream s;
+  s << t.sizes();
+  return s.str();
+}
+
+// Both images as double [H, W, N] after checking they are comparable.
+std::pair<torch::Tensor, torch::Tensor> as_double(const torch::Tensor& pred,
+                                                  const torch::Tensor& gt) {
+  core::require(pred.defined() && gt.defined(), "metrics: an image is missing");
+  core::require(pred.dim() == 3 && gt.dim() == 3 && pred.sizes() == gt.sizes(),
+                "metrics: prediction " + shape_string(pred) + " and ground truth " +
+                    shape_string(gt) + " must both be [H, W, N] of the same shape");
+  core::require(pred.numel() > 0, "metrics: empty image " + shape_string(pred));
+  torch::Tensor p = pred.to(torch::kDouble), g = gt.to(torch::kDouble);
+  core::require(torch::isfinite(p).all().item<bool>(),
+                "metrics: prediction contains NaN or Inf values");
+  core::require(torch::isfinite(g).all().item<bool>(),
+                "metrics: ground truth contains NaN or Inf values");
+  return {p, g};
+}
+
+double psnr_from_mse(double mse) {
+  return 10.0 * std::log10(1.0 / std::max(mse, kMinMse));
+}
+
+// Normalised 1D Gaussian taps; the 2D window is their outer product.
+torch::Tensor gaussian_taps() {
+  torch::Tensor x = torch::arange(kWindow, torch::kDouble) - double(kWindow / 2);
+  torch::Tensor w = torch::exp(-(x * x) / (2 * kSigma * kSigma));
+  return w / w.sum();
+}
+
+// Gaussian-weighted local mean of each band over the windows that fit:
+// [N, 1, H, W] -> [N, 1, H - 10, W - 10], as a separable pair of 1D convolutions.
+torch::Tensor local_mean(const torch::Tensor& x, const torch::Tensor& taps) {
+  namespace F = torch::nn::functional;
+  return F::conv2d(F::conv2d(x, taps.view({1, 1, kWindow, 1})), taps.view({1, 1, 1, kWindow}));
+}
+
+// SSIM map averaged over pixels, one value per band: [N].
+torch::Tensor ssim_per_band(const torch::Tensor& p, const torch::Tensor& g) {
+  core::require(p.size(0) >= kWindow && p.size(1) >= kWindow,
+                "metrics: SSIM needs images of at least 11 x 11 pixels, got " + shape_string(p));
+  torch::Tensor x = p.permute({2, 0, 1}).unsqueeze(1).contiguous();  // [N, 1, H, W]
+  torch::Tensor y = g.permute({2, 0, 1}).unsqueeze(1).contiguous();
+  torch::Tensor taps = gaussian_taps();
+  torch::Tensor mu_x = local_mean(x, taps), mu_y = local_mean(y, taps);
+  torch::Tensor var_x = local_mean(x * x, taps) - mu_x * mu_x;
+  torch::Tensor var_y = local_mean(y * y, taps) - mu_y * mu_y;
+  torch::Tensor cov = local_mean(x * y, taps) - mu_x * mu_y;
+  torch::Tensor map = ((2 * mu_x * mu_y + kC1) * (2 * cov + kC2)) /
+                      ((mu_x * mu_x + mu_y * mu_y + kC1) * (var_x + var_y + kC2));
+  return map.mean(std::vector<int64_t>{1, 2, 3});
+}
+
+std::vector<double> to_vector(const torch::Tensor& t) {
+  torch::Tensor c = t.contiguous().to(torch::kDouble);
+  return std::vector<double>(c.data_ptr<double>(), c.data_ptr<double>() + c.numel());
+}
+
+std::vector<double> band_psnr_checked(const torch::Tensor& p, const torch::Tensor& g) {
+  std::vector<double> mse = to_vector((p - g).square().mean(std::vector<int64_t>{0, 1}));
+  for (double& v : mse) v = psnr_from_mse(v);
+  return mse;
+}
+
+double sam_checked(const torch::Tensor& p, const torch::Tensor& g) {
+  torch::Tensor dot = (p * g).sum(-1);  // [H, W]
+  torch::Tensor norm_p = p.norm(2, -1), norm_g = g.norm(2, -1);
+  torch::Tensor valid = norm_g > 0;
+  int64_t count = valid.sum().item<int64_t>();
+  if (count == 0) return 0;
+  torch::Tensor cosine = (dot / (norm_p * norm_g).clamp_min(1e-300)).clamp(-1, 1);
+  torch::Tensor angle =
+      torch::where(norm_p > 0, torch::acos(cosine), torch::full_like(cosine, M_PI / 2));
+  return angle.masked_select(valid).sum().item<double>() / double(count);
+}
+
+}  // namespace
+
+double psnr_db(const torch::Tensor& pred, const torch::Tensor& gt) {
+  auto [p, g] = as_double(pred, gt);
+  return psnr_from_mse((p - g).square().mean().item<double>());
+}
+
+std::vector<double> band_psnr_db(const torch::Tensor& pred, const torch::Tensor& gt) {
+  auto [p, g] = as_double(pred, gt);
+  return band_psnr_checked(p, g);
+}
+
+double rmse(const torch::Tensor& pred, const torch::Tensor& gt) {
+  auto [p, g] = as_double(pred, gt);
+  return std::sqrt((p - g).square().mean().item<double>());
+}
+
+double ssim(const torch::Tensor& pred, const torch::Tensor& gt) {
+  auto [p, g] = as_double(pred, gt);
+  return ssim_per_band(p, g).mean().item<double>();
+}
+
+std::vector<double> band_ssim(const torch::Tensor& pred, const torch::Tensor& gt) {
+  auto [p, g] = as_double(pred, gt);
+  return to_vector(ssim_per_band(p, g));
+}
+
+double sam_rad(const torch::Tensor& pred, const torch::Tensor& gt) {
+  auto [p, g] = as_double(pred, gt);
+  return sam_checked(p, g);
+}
+
+ImageMetrics compute_metrics(const torch::Tensor& pred, const torch::Tensor& gt) {
+  torch::NoGradGuard no_grad;
+  auto [p, g] = as_double(pred, gt);
+  double mse = (p - g).square().mean().item<double>();
+  ImageMetrics m;
+  m.psnr_db = psnr_from_mse(mse);
+  m.ssim = ssim_per_band(p, g).mean().item<double>();
+  m.sam_rad = sam_checked(p, g);
+  m.rmse = std::sqrt(mse);
+  m.band_psnr_db = band_psnr_checked(p, g);
+  return m;
+}
+
+ImageMetrics mean_metrics(const std::vector<ImageMetrics>& views) {
+  ImageMetrics mean;
+  if (views.empty()) return mean;
+  mean.band_psnr_db.assign(views.front().band_psnr_db.size(), 0.0);
+  for (const ImageMetrics& v : views) {
+    core::require(v.band_psnr_db.size() == mean.band_psnr_db.size(),
+                  "metrics: views with different band counts cannot be averaged");
+    mean.psnr_db += v.psnr_db;
+    mean.ssim += v.ssim;
+    mean.sam_rad += v.sam_rad;
+    mean.rmse += v.rmse;
+    for (size_t b = 0; b < v.band_psnr_db.size(); ++b) mean.band_psnr_db[b] += v.band_psnr_db[b];
+  }
+  double n = double(views.size());
+  mean.psnr_db /= n;
+  mean.ssim /= n;
+  mean.sam_rad /= n;
+  mean.rmse /= n;
+  for (double& b : mean.band_psnr_db) b /= n;
+  return mean;
+}
+
+}  // namespace ddhgs::eval

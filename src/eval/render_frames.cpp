@@ -1,0 +1,106 @@
+#include "eval/render_frames.h"
+
+#include <cstdio>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "eval/orbit.h"
+#include "io/cube.h"
+#include "io/image.h"
+
+namespace ddhgs::eval {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int64_t kGapPx = 4;         // white gap between compared pictures
+constexpr int64_t kColourBarPx = 12;  // height of the error colour bar
+
+std::string number_label(double value) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", value);
+  return buf;
+}
+
+}  // namespace
+
+OutputFormat parse_output_format(const std::string& name) {
+  if (name == "png") return OutputFormat::Png;
+  if (name == "npy") return OutputFormat::Npy;
+  if (name == "envi") return OutputFormat::Envi;
+  throw core::Error("--format: expected npy, envi or png, got '" + name + "'");
+}
+
+std::vector<Frame> view_frames(const io::Scene& scene, const std::vector<int>& views) {
+  std::vector<Frame> frames;
+  for (int v : views)
+    frames.push_back({scene.views[size_t(v)].name, scene.views[size_t(v)].camera, v});
+  return frames;
+}
+
+std::vector<Frame> orbit_frames(const io::Scene& scene, int count) {
+  std::vector<core::Camera> train;
+  for (int v : scene.train) train.push_back(scene.views[size_t(v)].camera);
+  if (train.empty())
+    for (const io::View& view : scene.views) train.push_back(view.camera);
+  std::vector<Frame> frames;
+  std::vector<core::Camera> path = orbit_cameras(train, count);
+  for (size_t i = 0; i < path.size(); ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "orbit_%03zu", i);
+    frames.push_back({name, path[i], -1});
+  }
+  return frames;
+}
+
+int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
+                  const torch::Tensor& background, const std::vector<Frame>& frames,
+                  const RenderOptions& options) {
+  torch::NoGradGuard no_grad;
+  fs::create_directories(options.out_dir);
+  const std::vector<double>& wavelengths = scene.wavelengths_nm;
+  const std::string label = options.bands.label;
+  int written = 0;
+  core::ProgressBar bar("render", int64_t(frames.size()));
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const Frame& frame = frames[i];
+    fs::path stem = options.out_dir / frame.name;
+    torch::Tensor image =
+        model::render_gaussians(gaussians, frame.camera, background).image;  // [H, W, N]
+    if (options.format == OutputFormat::Npy) {
+      io::write_npy(stem.string() + ".npy", image);
+      ++written;
+    } else if (options.format == OutputFormat::Envi) {
+      io::write_envi(stem.string() + ".hdr", image, wavelengths);
+      written += 2;
+    }
+    torch::Tensor shown = picture(image, wavelengths, options.bands, options.colormap);
+    io::write_png(stem.string() + "_" + label + ".png", shown);
+    ++written;
+
+    if (options.diff && frame.view >= 0) {
+      torch::Tensor truth =
+          scene.has_clean() ? scene.clean_image(frame.view) : scene.image(frame.view);  // [H, W, N]
+      torch::Tensor error =
+          error_heatmap(image, truth, options.bands, options.diff_max, options.colormap);
+      io::write_png(
+          stem.string() + "_" + label + "_diff_max" + number_label(options.diff_max) + ".png",
+          error);
+      // The colour bar sits under the error panel only.
+      torch::Tensor blank = torch::ones({kColourBarPx, error.size(1), 3}, torch::kFloat);
+      torch::Tensor legend = side_by_side(
+          {blank, blank, colour_bar(kColourBarPx, error.size(1), options.colormap)}, kGapPx);
+      torch::Tensor compare = stacked(
+          side_by_side({picture(truth, wavelengths, options.bands, options.colormap), shown, error},
+                       kGapPx),
+          legend, kGapPx);
+      io::write_png(stem.string() + "_" + label + "_compare.png", compare);
+      written += 2;
+    }
+    bar.update(int64_t(i + 1));
+  }
+  bar.finish(std::to_string(written) + " files in " + options.out_dir.string());
+  return written;
+}
+
+}  // namespace ddhgs::eval

@@ -1,0 +1,57 @@
+// Renders a list of frames (dataset views or orbit cameras) to cubes and
+// pictures: the work behind `ddhgs render`.
+#pragma once
+#include <torch/torch.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+#include "eval/figures.h"
+#include "io/dataset.h"
+#include "model/gaussians.h"
+
+namespace ddhgs::eval {
+
+enum class OutputFormat {
+  Png,   // pictures only
+  Npy,   // float32 [H, W, N] .npy cube per frame, plus pictures
+  Envi,  // ENVI .hdr + .img cube (BSQ, float32, wavelengths) per frame, plus pictures
+};
+OutputFormat parse_output_format(const std::string& name);  // "png", "npy", "envi"
+
+struct Frame {
+  std::string name;     // file stem
+  core::Camera camera;  // at the output resolution
+  int view = -1;        // scene view with ground truth, -1 for none (orbit)
+};
+
+struct RenderOptions {
+  std::filesystem::path out_dir;
+  OutputFormat format = OutputFormat::Png;
+  BandSelection bands;  // default: pseudo-RGB
+  Colormap colormap = Colormap::Viridis;
+  // For frames with ground truth: an error heatmap and a side-by-side
+  // comparison (truth | render | error, with a colour bar under the error).
+  bool diff = false;
+  double diff_max = 0.1;  // reflectance error shown at the top of the colour map
+};
+
+// Frames for the views of a split, named by their file stems.
+std::vector<Frame> view_frames(const io::Scene& scene, const std::vector<int>& views);
+// Frames orbit_000, orbit_001, ... along eval::orbit_cameras of the training views.
+std::vector<Frame> orbit_frames(const io::Scene& scene, int count);
+
+// Writes, per frame, into out_dir (created):
+//   NAME.npy | NAME.hdr + NAME.img      the cube (npy / envi formats)
+//   NAME_LABEL.png                      picture (LABEL: rgb, band42, 750-768nm)
+//   NAME_LABEL_diff_max0.1.png          error heatmap (diff, frames with truth)
+//   NAME_LABEL_compare.png              truth | render | error (diff, frames with truth)
+// Ground truth is the clean view when the scene has one, else the stored view.
+// Returns the number of files written. Every file is written atomically.
+int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
+                  const torch::Tensor& background,  // [N]
+                  const std::vector<Frame>& frames, const RenderOptions& options);
+
+}  // namespace ddhgs::eval

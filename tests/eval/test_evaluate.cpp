@@ -1,0 +1,206 @@
+// Evaluation and rendering of a model on a small scene written to disk: the
+// stored views are the model's own renders plus noise, the clean views its
+// exact renders, so every expected number is known.
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+
+#include "core/error.h"
+#include "eval/evaluate.h"
+#include "eval/render_frames.h"
+#include "io/atomic_file.h"
+#include "io/cube.h"
+#include "io/image.h"
+#include "io/transforms.h"
+#include "support/test_support.h"
+
+namespace ddhgs::eval {
+namespace {
+namespace fs = std::filesystem;
+
+constexpr int kWidth = 24, kHeight = 20, kViews = 4;
+const std::vector<double> kWavelengths = {500, 550, 600, 650};
+
+model::Gaussians make_gaussians() {
+  torch::manual_seed(3);
+  const int64_t g = 40, n = int64_t(kWavelengths.size());
+  model::Gaussians m;
+  m.means = torch::rand({g, 3}) - 0.5;
+  m.log_scales = torch::full({g, 3}, std::log(0.12f));
+  m.quats = torch::tensor({1.0f, 0.0f, 0.0f, 0.0f}).repeat({g, 1});
+  m.logit_opacities = torch::full({g, 1}, 1.5f);
+  m.sh_dc = (torch::rand({g, n}) * 0.8 + 0.1 - 0.5) / model::kShC0;
+  m.sh_rest = torch::zeros({g, n, 0});
+  m.active_sh_degree = 0;
+  return m;
+}
+
+core::Camera ring_camera(int i) {
+  double t = 2 * M_PI * i / kViews;
+  core::Camera cam;
+  cam.intrinsics = {30, 30, kWidth / 2.0, kHeight / 2.0, kWidth, kHeight};
+  cam.world_to_camera =
+      core::look_at({3 * std::cos(t), 3 * std::sin(t), 0.8}, {0, 0, 0}, {0, 0, 1});
+  return cam;
+}
+
+std::string stem(int i) {
+  return "v" + std::to_string(i);
+}
+
+// Writes the dataset; views 1 and 3 are the test split.
+fs::path write_scene(const model::Gaussians& gaussians, const torch::Tensor& background) {
+  fs::path dir = test::temp_dir("eval_scene");
+  fs::create_directories(dir / "hyperspectral");
+  fs::create_directories(dir / "clean");
+  io::TransformsFile tf;
+  tf.wavelengths_nm = kWavelengths;
+  for (int i = 0; i < kViews; ++i) {
+    core::Camera cam = ring_camera(i);
+    torch::Tensor clean = model::render_gaussians(gaussians, cam, background).image.detach();
+    torch::Tensor noisy = (clean + 0.02 * torch::randn_like(clean)).clamp(0, 1);
+    io::write_npy(dir / "hyperspectral" / (stem(i) + ".npy"), noisy);
+    io::write_npy(dir / "clean" / (stem(i) + ".npy"), clean);
+    io::TransformsFrame frame;
+    frame.file_path = "images/" + stem(i) + ".png";
+    frame.hyperspectral_file_path = "hyperspectral/" + stem(i) + ".npy";
+    frame.intrinsics = cam.intrinsics;
+    frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(cam.world_to_camera);
+    tf.frames.push_back(frame);
+    (i % 2 ? tf.test_files : tf.train_files).push_back(frame.file_path);
+  }
+  io::write_transforms(dir / "transforms.json", tf);
+  return dir;
+}
+
+class EvalScene : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    gaussians = make_gaussians();
+    background = torch::zeros({int64_t(kWavelengths.size())});
+    scene = io::load_scene(write_scene(gaussians, background));
+  }
+  model::Gaussians gaussians;
+  torch::Tensor background;
+  std::unique_ptr<io::Scene> scene;
+};
+
+TEST_F(EvalScene, MetricsAgainstStoredAndCleanViews) {
+  ASSERT_EQ(scene->test, (std::vector<int>{1, 3}));
+  ASSERT_TRUE(scene->has_clean());
+  EvalOptions options;
+  options.fps_repeats = 3;
+  EvalReport report = evaluate(*scene, gaussians, background, scene->test, "test", options);
+  ASSERT_EQ(report.per_view.size(), 4u);
+  EXPECT_EQ(report.per_view[0].view, "v1");
+  EXPECT_EQ(report.per_view[0].truth, "views");
+  EXPECT_EQ(report.per_view[1].truth, "clean");
+  EXPECT_EQ(report.width, kWidth);
+  EXPECT_EQ(report.gaussians, 40);
+
+  // Against the clean views the model is perfect.
+  ASSERT_TRUE(report.mean_clean.has_value());
+  EXPECT_DOUBLE_EQ(report.mean_clean->psnr_db, kMaxPsnrDb);
+  EXPECT_NEAR(report.mean_clean->ssim, 1.0, 1e-9);
+  // Against the noisy views: the mean of the per-view metrics, noise-limited.
+  std::vector<ImageMetrics> direct;
+  for (int v : scene->test)
+    direct.push_back(compute_metrics(
+        model::render_gaussians(gaussians, scene->views[size_t(v)].camera, background).image,
+        scene->image(v)));
+  ImageMetrics expected = mean_metrics(direct);
+  EXPECT_NEAR(report.mean.psnr_db, expected.psnr_db, 1e-9);
+  EXPECT_NEAR(report.mean.sam_rad, expected.sam_rad, 1e-12);
+  EXPECT_GT(report.mean.psnr_db, 30);
+  EXPECT_LT(report.mean.psnr_db, 40);
+  ASSERT_EQ(report.mean.band_psnr_db.size(), kWavelengths.size());
+
+  ASSERT_TRUE(report.timing.has_value());
+  EXPECT_EQ(report.timing->repeats, 3);
+  EXPECT_EQ(report.timing->views, 2);
+  EXPECT_GT(report.timing->fps(), 0);
+  std::string table = format_report(report);
+  EXPECT_NE(table.find("clean"), std::string::npos);
+  EXPECT_NE(table.find("FPS"), std::string::npos);
+}
+
+TEST_F(EvalScene, WritesMetricsJsonAndCsv) {
+  EvalOptions options;
+  options.fps_repeats = 1;
+  EvalReport report =
+      evaluate(*scene, gaussians, background, split_views(*scene, "all"), "all", options);
+  fs::path dir = test::temp_dir("eval_out");
+  write_metrics_json(dir / "metrics.json", report);
+  write_per_view_csv(dir / "per_view.csv", report);
+  auto j = nlohmann::json::parse(io::read_file(dir / "metrics.json"));
+  EXPECT_EQ(j["split"], "all");
+  EXPECT_EQ(j["views"], kViews);
+  EXPECT_NEAR(j["psnr"].get<double>(), report.mean.psnr_db, 1e-9);
+  EXPECT_NEAR(j["clean"]["sam"].get<double>(), report.mean_clean->sam_rad, 1e-12);
+  EXPECT_EQ(j["per_band_psnr"]["wavelengths_nm"].get<std::vector<double>>(), kWavelengths);
+  EXPECT_EQ(j["per_band_psnr"]["psnr"].size(), kWavelengths.size());
+  EXPECT_GT(j["fps"].get<double>(), 0);
+  std::ifstream csv(dir / "per_view.csv");
+  std::string line;
+  int lines = 0;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "view,truth,psnr_db,ssim,sam_rad,rmse");
+  while (std::getline(csv, line)) ++lines;
+  EXPECT_EQ(lines, 2 * kViews);
+}
+
+TEST_F(EvalScene, RejectsBandMismatchAndUnknownSplit) {
+  model::Gaussians three = gaussians;
+  three.sh_dc = gaussians.sh_dc.narrow(1, 0, 3);
+  three.sh_rest = gaussians.sh_rest.narrow(1, 0, 3);
+  EXPECT_THROW(evaluate(*scene, three, background.narrow(0, 0, 3), scene->test, "test"),
+               core::Error);
+  EXPECT_THROW(split_views(*scene, "val"), core::Error);
+}
+
+TEST_F(EvalScene, RendersCubesPicturesAndComparisons) {
+  RenderOptions options;
+  options.out_dir = test::temp_dir("eval_render") / "test";
+  options.format = OutputFormat::Npy;
+  options.diff = true;
+  int files =
+      render_frames(*scene, gaussians, background, view_frames(*scene, scene->test), options);
+  EXPECT_EQ(files, 2 * 4);
+  fs::path out = options.out_dir;
+  io::Cube cube = io::read_cube(out / "v1.npy");
+  torch::Tensor expected =
+      model::render_gaussians(gaussians, scene->views[1].camera, background).image;
+  EXPECT_TRUE(torch::allclose(cube_to_float(cube), expected));
+  EXPECT_EQ(io::read_image(out / "v1_rgb.png").sizes(), (std::vector<int64_t>{kHeight, kWidth, 3}));
+  // The model equals the clean truth: the error heatmap is the colour of 0.
+  torch::Tensor heat = io::read_image(out / "v3_rgb_diff_max0.1.png");
+  EXPECT_EQ(heat[5][5][0].item<uint8_t>(), 68);  // viridis(0) = (0.267, 0.005, 0.329)
+  torch::Tensor compare = io::read_image(out / "v3_rgb_compare.png");
+  EXPECT_EQ(compare.sizes(), (std::vector<int64_t>{kHeight + 4 + 12, 3 * kWidth + 8, 3}));
+}
+
+TEST_F(EvalScene, RendersEnviBandsAndOrbitFrames) {
+  RenderOptions options;
+  options.out_dir = test::temp_dir("eval_orbit");
+  options.format = OutputFormat::Envi;
+  options.bands = select_bands("", "540:610", scene->wavelengths_nm);
+  options.colormap = Colormap::Gray;
+  options.diff = true;  // orbit frames have no ground truth: no heatmaps
+  std::vector<Frame> frames = orbit_frames(*scene, 3);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[2].name, "orbit_002");
+  EXPECT_EQ(render_frames(*scene, gaussians, background, frames, options), 3 * 3);
+  io::Cube cube = io::read_cube(options.out_dir / "orbit_001.hdr");
+  EXPECT_EQ(cube.bands(), 4);
+  EXPECT_EQ(cube.wavelengths_nm, kWavelengths);
+  // A grey picture of bands 550 and 600 nm: every channel equal.
+  torch::Tensor pic = io::read_image(options.out_dir / "orbit_001_540-610nm.png");
+  EXPECT_TRUE(torch::equal(pic.select(2, 0), pic.select(2, 2)));
+  EXPECT_FALSE(fs::exists(options.out_dir / "orbit_001_540-610nm_compare.png"));
+}
+
+}  // namespace
+}  // namespace ddhgs::eval
