@@ -1,0 +1,89 @@
+// Sample types, band-axis detection and conversion of stored cubes to float.
+#include <gtest/gtest.h>
+
+#include "cube_test_util.h"
+#include "io/cube.h"
+#include "io/cube_formats.h"
+
+namespace ddhgs::io {
+namespace {
+
+Cube make_cube(torch::Tensor data, SampleType type) {
+  Cube cube;
+  cube.data = std::move(data);
+  cube.type = type;
+  return cube;
+}
+
+TEST(Cube, SampleTypeFacts) {
+  EXPECT_EQ(to_string(SampleType::U16), "uint16");
+  EXPECT_EQ(bytes_per_sample(SampleType::U8), 1u);
+  EXPECT_EQ(bytes_per_sample(SampleType::F16), 2u);
+  EXPECT_EQ(bytes_per_sample(SampleType::F64), 8u);
+  EXPECT_EQ(default_scale(SampleType::U8), 255.0);
+  EXPECT_EQ(default_scale(SampleType::U16), 65535.0);
+  EXPECT_EQ(default_scale(SampleType::F32), 1.0);
+  Cube cube = make_cube(torch::zeros({4, 5, 6}, torch::kInt16), SampleType::U16);
+  EXPECT_EQ(cube.bytes(), 4u * 5 * 6 * 2);
+}
+
+TEST(Cube, AutoLayoutPicksTheBandAxisOnlyWhenClear) {
+  using detail::bands_first;
+  EXPECT_TRUE(bands_first(141, 512, 640, BandLayout::Auto));   // BaySpec saved B x H x W
+  EXPECT_FALSE(bands_first(512, 640, 141, BandLayout::Auto));  // H x W x B
+  EXPECT_FALSE(bands_first(520, 696, 128, BandLayout::Auto));
+  EXPECT_FALSE(bands_first(3, 4, 5, BandLayout::Auto));   // no clearly small axis
+  EXPECT_FALSE(bands_first(3, 64, 3, BandLayout::Auto));  // both ends small: H x W x B
+  EXPECT_TRUE(bands_first(3, 4, 5, BandLayout::BandsFirst));
+  EXPECT_FALSE(bands_first(141, 512, 640, BandLayout::BandsLast));
+}
+
+TEST(Cube, IntegerCubesScaleByTheirTypeMaximum) {
+  torch::Tensor u8 = torch::tensor({0, 51, 255}, torch::kUInt8).view({1, 3, 1});
+  torch::Tensor f = cube_to_float(make_cube(u8, SampleType::U8));
+  EXPECT_EQ(f.scalar_type(), torch::kFloat);
+  EXPECT_TRUE(torch::allclose(f.flatten(), torch::tensor({0.0f, 0.2f, 1.0f})));
+  // uint16 bits in int16: 65535 is stored as -1 and must come back as 1.0.
+  torch::Tensor u16 =
+      torch::tensor({0, 32768, 65535}, torch::kInt32).to(torch::kInt16).view({1, 3, 1});
+  f = cube_to_float(make_cube(u16, SampleType::U16));
+  EXPECT_TRUE(torch::allclose(f.flatten(), torch::tensor({0.0f, 32768.0f / 65535.0f, 1.0f})));
+  // A dataset's own scale (12-bit sensor in uint16) overrides the type maximum.
+  f = cube_to_float(make_cube(u16, SampleType::U16), 4095.0);
+  EXPECT_FLOAT_EQ(f[0][1][0].item<float>(), 32768.0f / 4095.0f);
+}
+
+TEST(Cube, FloatCubesAreCopiedNotModified) {
+  torch::Tensor data = torch::tensor({0.5f, -1.0f, 0.25f}).view({1, 3, 1});
+  Cube cube = make_cube(data, SampleType::F32);
+  cube.ignore_value = -1.0;
+  torch::Tensor f = cube_to_float(cube);
+  EXPECT_TRUE(torch::equal(f.flatten(), torch::tensor({0.5f, 0.0f, 0.25f})));
+  EXPECT_EQ(data[0][1][0].item<float>(), -1.0f);  // the stored cube is untouched
+  f = cube_to_float(cube, 0.5);
+  EXPECT_EQ(f[0][0][0].item<float>(), 1.0f);
+  EXPECT_EQ(data[0][0][0].item<float>(), 0.5f);
+}
+
+TEST(Cube, WideTypesCompareIgnoreValueExactly) {
+  // 16777217 is not a float32: the comparison must happen before narrowing.
+  torch::Tensor i32 = torch::tensor({16777217, 16777216}, torch::kInt32).view({1, 2, 1});
+  Cube cube = make_cube(i32, SampleType::I32);
+  cube.ignore_value = 16777217.0;
+  torch::Tensor f = cube_to_float(cube, 1.0);
+  EXPECT_EQ(f[0][0][0].item<float>(), 0.0f);
+  EXPECT_EQ(f[0][1][0].item<float>(), 16777216.0f);
+}
+
+TEST(Cube, UnknownFormatsNameTheFile) {
+  auto dir = test::temp_dir("cube_unknown");
+  test::write_bytes(dir / "cube.xyz", "data");
+  test::expect_error_naming([&] { read_cube(dir / "cube.xyz"); }, "cube.xyz",
+                            "unknown cube format");
+  test::expect_error_naming([&] { probe_cube(dir / "cube.xyz"); }, "cube.xyz",
+                            "unknown cube format");
+  test::expect_error_naming([&] { probe_cube(dir / "gone.npy"); }, "gone.npy", "not found");
+}
+
+}  // namespace
+}  // namespace ddhgs::io
