@@ -30,6 +30,10 @@ std::vector<torch::Tensor*> Gaussians::tensors() {
   return {&means, &log_scales, &quats, &logit_opacities, &sh_dc, &sh_rest};
 }
 
+std::vector<torch::Tensor> Gaussians::values() const {
+  return {means, log_scales, quats, logit_opacities, sh_dc, sh_rest};
+}
+
 const std::vector<std::string>& Gaussians::tensor_names() {
   static const std::vector<std::string> names{"means",           "log_scales", "quats",
                                               "logit_opacities", "sh_dc",      "sh_rest"};

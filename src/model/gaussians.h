@@ -31,6 +31,7 @@ struct Gaussians {
   // The six parameter tensors in a fixed order (means first), and their names,
   // so optimizers, checkpoints and densification treat them uniformly.
   std::vector<torch::Tensor*> tensors();
+  std::vector<torch::Tensor> values() const;  // handles to the same tensors, same order
   static const std::vector<std::string>& tensor_names();
 };
 

@@ -1,0 +1,119 @@
+// `ddhgs train DATA --out RUN`: trains N-band Gaussians on a dataset folder.
+// A preset (configs/) gives every hyperparameter; each flag overrides one key.
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+#include "app/registry.h"
+#include "core/error.h"
+#include "core/log.h"
+#include "train/config.h"
+#include "train/trainer.h"
+
+namespace ddhgs::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TrainArgs {
+  std::string data, out, preset = "default", resume, band_range;
+  std::vector<std::string> assignments;
+  bool force = false, rgb = false, random_init = false;
+  int64_t iterations = 0, seed = 0, max_gaussians = 0, checkpoint_every = 0;
+  int downscale = 1, bin = 1;
+  size_t cache_mb = 0;
+};
+
+// Flag -> config key, for the flags given on the command line.
+void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
+  auto given = [&](const char* name) { return cmd->get_option(name)->count() > 0; };
+  auto set = [&](const char* flag, const std::string& key, const std::string& value) {
+    if (given(flag)) train::set_key(config, key, value, flag);
+  };
+  set("--iterations", "iterations", std::to_string(a.iterations));
+  set("--seed", "seed", std::to_string(a.seed));
+  set("--downscale", "data.downscale", std::to_string(a.downscale));
+  set("--max-gaussians", "densify.max_gaussians", std::to_string(a.max_gaussians));
+  set("--cache-mb", "data.cache_mb", std::to_string(a.cache_mb));
+  set("--bin", "data.bin", std::to_string(a.bin));
+  set("--checkpoint-every", "output.checkpoint_every", std::to_string(a.checkpoint_every));
+  if (a.rgb) train::set_key(config, "data.rgb", "true", "--rgb");
+  if (a.random_init) train::set_key(config, "init.random", "true", "--random-init");
+  if (given("--band-range")) {
+    auto colon = a.band_range.find(':');
+    if (colon == std::string::npos)
+      throw core::Error("--band-range", "expected MIN:MAX in nm, got '" + a.band_range + "'");
+    try {
+      double lo = std::stod(a.band_range.substr(0, colon));
+      double hi = std::stod(a.band_range.substr(colon + 1));
+      config["data"]["band_min_nm"] = lo;
+      config["data"]["band_max_nm"] = hi;
+    } catch (const std::exception&) {
+      throw core::Error("--band-range", "expected MIN:MAX in nm, got '" + a.band_range + "'");
+    }
+  }
+  for (const auto& assignment : a.assignments) train::apply_assignment(config, assignment);
+}
+
+int run_new(const TrainArgs& a, CLI::App* cmd) {
+  if (a.data.empty()) throw core::Error("train: give a dataset folder (or --resume RUN)");
+  if (a.out.empty()) throw core::Error("train: --out RUN is required");
+  nlohmann::json config = train::load_preset(a.preset);
+  apply_flags(a, cmd, config);
+  std::error_code ec;
+  fs::path data = fs::absolute(a.data, ec);
+  if (!fs::exists(data)) throw core::Error(data, "no such dataset folder");
+  config["data"]["path"] = data.lexically_normal().string();
+  train::validate_config(config, "command line");
+  auto trainer = train::Trainer::start(config, {a.out}, a.force);
+  auto status = trainer->run();
+  if (status == train::TrainStatus::Interrupted) return 130;
+  core::log_info("done: " + a.out + "/gaussians.ply; evaluate with: ddhgs eval " + a.out);
+  return 0;
+}
+
+int run_resume(const TrainArgs& a, CLI::App* cmd) {
+  for (const char* flag : {"--preset", "--seed", "--downscale", "--max-gaussians", "--cache-mb",
+                           "--bin", "--band-range", "--rgb", "--random-init", "--set", "--out",
+                           "--force", "--checkpoint-every"})
+    if (cmd->get_option(flag)->count() > 0)
+      throw core::Error(flag, "cannot change a run being resumed (only --iterations)");
+  if (!a.data.empty()) throw core::Error("--resume", "give the run folder only, not a dataset");
+  auto trainer = train::Trainer::resume({a.resume}, a.iterations);
+  auto status = trainer->run();
+  if (status == train::TrainStatus::Interrupted) return 130;
+  core::log_info("done: " + a.resume + "/gaussians.ply");
+  return 0;
+}
+
+Action setup(CLI::App& parent) {
+  auto args = std::make_shared<TrainArgs>();
+  CLI::App* cmd = parent.add_subcommand("train", "Train N-band Gaussians on a dataset folder");
+  cmd->add_option("data", args->data, "Dataset folder (transforms.json or COLMAP layout)");
+  cmd->add_option("--out", args->out, "Run folder to create");
+  cmd->add_option("--preset", args->preset, "Preset name in configs/ or a .json path")
+      ->capture_default_str();
+  cmd->add_option("--set", args->assignments, "Override one key: key.path=value (repeatable)");
+  cmd->add_option("--iterations", args->iterations, "Training iterations");
+  cmd->add_option("--seed", args->seed, "Random seed");
+  cmd->add_option("--downscale", args->downscale, "Train on images downscaled by this factor");
+  cmd->add_option("--max-gaussians", args->max_gaussians,
+                  "Stop densifying at this many (0: no cap)");
+  cmd->add_flag("--rgb", args->rgb, "Train on the RGB images as a 3-band scene");
+  cmd->add_option("--cache-mb", args->cache_mb, "Memory budget for decoded views, MiB");
+  cmd->add_option("--band-range", args->band_range, "Keep bands within MIN:MAX nm");
+  cmd->add_option("--bin", args->bin, "Average groups of this many adjacent bands");
+  cmd->add_option("--checkpoint-every", args->checkpoint_every,
+                  "Checkpoint interval (0: end only)");
+  cmd->add_flag("--random-init", args->random_init,
+                "Start from random points in the view volume instead of the dataset's points");
+  cmd->add_flag("--force", args->force, "Replace an existing run folder (kept until success)");
+  cmd->add_option("--resume", args->resume, "Continue the run in this folder");
+  return
+      [args, cmd]() { return args->resume.empty() ? run_new(*args, cmd) : run_resume(*args, cmd); };
+}
+
+const Registrar registrar("train", 30, setup);
+
+}  // namespace
+}  // namespace ddhgs::app

@@ -1,0 +1,45 @@
+// Training configuration: versioned JSON presets under configs/, resolved
+// into one complete JSON object (every key) that a run folder keeps.
+//
+// configs/default.json is the schema: every key a preset, an override or a
+// run's config.json sets must exist there with a compatible type. A preset
+// may "extends" another one (by name or path); keys it sets replace the
+// parent's. Later issues add their keys to default.json.
+#pragma once
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <string>
+
+#include "io/dataset.h"
+
+namespace ddhgs::train {
+
+constexpr int kConfigFormatVersion = 1;
+
+// Folder holding default.json: $DDHGS_CONFIG_DIR, else the nearest configs/
+// above the running executable, else /usr/share/ddhgs/configs.
+std::filesystem::path config_dir();
+
+// A preset by name ("demo" -> configs/demo.json) or by path to a .json file,
+// with its "extends" chain resolved and every key validated. The result has
+// every key of default.json and no "extends".
+nlohmann::json load_preset(const std::string& name_or_path);
+
+// Validates a resolved config (e.g. a run's config.json) read from `source`.
+void validate_config(const nlohmann::json& config, const std::string& source);
+
+// Sets one key ("densify.grad_threshold") from text: JSON if it parses as
+// JSON, else a string. Throws core::Error naming `source` and the key when
+// the key is unknown or the value has the wrong type.
+void set_key(nlohmann::json& config, const std::string& key_path, const std::string& value,
+             const std::string& source = "--set");
+
+// "key.path=value" -> set_key.
+void apply_assignment(nlohmann::json& config, const std::string& assignment);
+
+io::LoadOptions load_options(const nlohmann::json& config);
+// The background colour for N bands: model.background as one number or N numbers.
+torch::Tensor background(const nlohmann::json& config, int64_t bands);
+
+}  // namespace ddhgs::train

@@ -1,0 +1,180 @@
+#include "train/init.h"
+
+#include <ATen/CPUGeneratorImpl.h>
+
+#include <cmath>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "model/knn.h"
+
+namespace ddhgs::train {
+
+namespace {
+
+std::vector<int> spread(const std::vector<int>& views, int count) {
+  if (count <= 0 || int(views.size()) <= count) return views;
+  std::vector<int> out;
+  for (int i = 0; i < count; ++i) out.push_back(views[size_t(i) * views.size() / size_t(count)]);
+  return out;
+}
+
+core::Vec3 look_at_point(const io::Scene& scene, const std::vector<int>& views) {
+  // Solve sum (I - d d^T) x = sum (I - d d^T) c over the optical axes.
+  double a[3][3] = {{0}}, b[3] = {0};
+  core::Vec3 mean;
+  for (int v : views) {
+    const core::Camera& cam = scene.views[v].camera;
+    core::Vec3 c = cam.center(), d = cam.forward();
+    mean = mean + c * (1.0 / double(views.size()));
+    double dd[3] = {d.x, d.y, d.z}, cc[3] = {c.x, c.y, c.z};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        double m = (i == j ? 1.0 : 0.0) - dd[i] * dd[j];
+        a[i][j] += m;
+        b[i] += m * cc[j];
+      }
+  }
+  core::Mat3 m;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) m(i, j) = a[i][j];
+  const double det = m.determinant();
+  if (std::abs(det) < 1e-6 * double(views.size() * views.size() * views.size())) {
+    // Parallel axes (a forward-facing capture): look one extent ahead.
+    core::Vec3 forward;
+    for (int v : views) forward = forward + scene.views[v].camera.forward();
+    return mean + forward.normalized() * std::max(scene_extent(scene, views), 1.0);
+  }
+  // Cramer's rule on the 3x3 system.
+  core::Vec3 x;
+  double* out[3] = {&x.x, &x.y, &x.z};
+  for (int k = 0; k < 3; ++k) {
+    core::Mat3 mk = m;
+    for (int i = 0; i < 3; ++i) mk(i, k) = b[i];
+    *out[k] = mk.determinant() / det;
+  }
+  return x;
+}
+
+}  // namespace
+
+double scene_extent(const io::Scene& scene, const std::vector<int>& views) {
+  core::require(!views.empty(), scene.root, "no training views");
+  core::Vec3 mean;
+  for (int v : views) mean = mean + scene.views[v].camera.center() * (1.0 / double(views.size()));
+  double radius = 0;
+  for (int v : views) radius = std::max(radius, (scene.views[v].camera.center() - mean).norm());
+  // A single camera (or coincident ones) has no spread; fall back to unit scale.
+  return radius > 0 ? 1.1 * radius : 1.0;
+}
+
+torch::Tensor sample_view_volume(const io::Scene& scene, const std::vector<int>& views,
+                                 int64_t count, at::Generator& generator) {
+  core::require(!views.empty(), scene.root, "no training views");
+  const core::Vec3 target = look_at_point(scene, views);
+  auto u = torch::rand({count, 4}, generator, torch::kFloat64);
+  auto ua = u.accessor<double, 2>();
+  auto out = torch::empty({count, 3}, torch::kFloat32);
+  auto oa = out.accessor<float, 2>();
+  for (int64_t i = 0; i < count; ++i) {
+    const int v = views[std::min(size_t(ua[i][0] * double(views.size())), views.size() - 1)];
+    const core::Camera& cam = scene.views[v].camera;
+    const auto& k = cam.intrinsics;
+    const double px = ua[i][1] * k.width, py = ua[i][2] * k.height;
+    const core::Vec3 dir_cam{(px - k.cx) / k.fx, (py - k.cy) / k.fy, 1.0};
+    const core::Vec3 c = cam.center();
+    const double distance = std::max((target - c).norm(), 1e-3);
+    // z-depth along the camera axis, so points fill the frustum slab.
+    const double depth = distance * (0.5 + ua[i][3]);
+    const core::Vec3 p = cam.camera_to_world().transform_point(dir_cam * depth);
+    oa[i][0] = float(p.x);
+    oa[i][1] = float(p.y);
+    oa[i][2] = float(p.z);
+  }
+  return out;
+}
+
+std::pair<torch::Tensor, torch::Tensor> colours_from_views(const io::Scene& scene,
+                                                           const std::vector<int>& views,
+                                                           const torch::Tensor& xyz) {
+  const int64_t p = xyz.size(0), n = scene.bands();
+  auto colours = torch::zeros({p, n}, torch::kFloat32);
+  auto seen = torch::zeros({p}, torch::kBool);
+  auto points = xyz.to(torch::kFloat32).contiguous();
+  auto xa = points.accessor<float, 2>();
+  auto sa = seen.accessor<bool, 1>();
+  for (int v : views) {
+    const core::Camera& cam = scene.views[v].camera;
+    const auto& k = cam.intrinsics;
+    torch::Tensor image = scene.image(v);  // [H, W, N]
+    std::vector<int64_t> rows, pixels;
+    for (int64_t i = 0; i < p; ++i) {
+      if (sa[i]) continue;
+      const core::Vec3 q = cam.world_to_camera.transform_point(
+          core::Vec3{double(xa[i][0]), double(xa[i][1]), double(xa[i][2])});
+      if (q.z <= 1e-6) continue;
+      const double u = k.fx * q.x / q.z + k.cx, w = k.fy * q.y / q.z + k.cy;
+      if (u < 0 || w < 0 || u >= k.width || w >= k.height) continue;
+      rows.push_back(i);
+      pixels.push_back(int64_t(w) * image.size(1) + int64_t(u));
+      sa[i] = true;
+    }
+    if (rows.empty()) continue;
+    auto row_t = torch::tensor(rows, torch::kInt64);
+    auto values = image.reshape({-1, n}).index_select(0, torch::tensor(pixels, torch::kInt64));
+    colours.index_copy_(0, row_t, values);
+  }
+  return {colours, seen};
+}
+
+model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions& options) {
+  const int64_t n = scene.bands();
+  core::require(n > 0, scene.root, "the scene has no bands");
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(options.seed);
+  torch::Tensor xyz, values;
+  const bool has_points = scene.points.xyz.defined() && scene.points.xyz.size(0) > 0;
+  if (options.random || !has_points) {
+    if (!options.random)
+      throw core::Error(scene.root,
+                        "the dataset has no points to initialise from; pass "
+                        "--random-init to start from random points instead");
+    xyz = sample_view_volume(scene, scene.train, options.random_points, generator);
+    values = torch::full({xyz.size(0), n}, 0.5f);
+    core::log_warn("initialising " + std::to_string(xyz.size(0)) +
+                   " Gaussians at random inside the cameras' view volume");
+  } else {
+    xyz = scene.points.xyz.to(torch::kFloat32).contiguous();
+    const auto& spectra = scene.points.spectra;
+    const auto& rgb = scene.points.rgb;
+    if (spectra.defined() && spectra.size(1) == n) {
+      values = spectra.to(torch::kFloat32);
+    } else if (n == 3 && rgb.defined()) {
+      values = rgb.to(torch::kFloat32) / 255.0f;
+    } else {
+      auto [colours, seen] =
+          colours_from_views(scene, spread(scene.train, options.colour_views), xyz);
+      values = torch::where(seen.unsqueeze(1), colours, torch::full_like(colours, 0.5f));
+      const int64_t unseen = xyz.size(0) - seen.sum().item<int64_t>();
+      if (unseen > 0)
+        core::log_info(std::to_string(unseen) + " of " + std::to_string(xyz.size(0)) +
+                       " points are outside the sampled views; they start grey");
+    }
+  }
+  const int64_t g = xyz.size(0);
+  model::Gaussians gaussians;
+  gaussians.means = xyz.clone();
+  auto dist2 = model::mean_sq_distance_to_neighbours(xyz, options.neighbours).clamp_min(1e-7f);
+  gaussians.log_scales = (0.5f * dist2.log()).unsqueeze(1).repeat({1, 3}).contiguous();
+  gaussians.quats = torch::zeros({g, 4});
+  gaussians.quats.select(1, 0).fill_(1.0f);
+  const double logit = std::log(options.opacity / (1 - options.opacity));
+  gaussians.logit_opacities = torch::full({g, 1}, float(logit));
+  gaussians.sh_dc = ((values.clamp(0, 1) - 0.5f) / float(model::kShC0)).contiguous();
+  const int k = (options.sh_degree + 1) * (options.sh_degree + 1) - 1;
+  gaussians.sh_rest = torch::zeros({g, n, k});
+  gaussians.active_sh_degree = 0;
+  for (torch::Tensor* t : gaussians.tensors()) t->requires_grad_(true);
+  return gaussians;
+}
+
+}  // namespace ddhgs::train

@@ -1,0 +1,41 @@
+#include "train/losses.h"
+
+#include <cmath>
+
+#include "model/ssim.h"
+
+namespace ddhgs::train {
+
+LossValues evaluate_losses(const std::vector<LossTerm>& terms, const LossInputs& inputs) {
+  LossValues values;
+  for (const auto& term : terms) {
+    if (term.weight == 0) continue;
+    torch::Tensor v = term.compute(inputs);
+    values.terms.emplace_back(term.name, v.item<double>());
+    values.total = values.total.defined() ? values.total + term.weight * v : term.weight * v;
+  }
+  if (!values.total.defined()) values.total = inputs.render.sum() * 0;
+  return values;
+}
+
+torch::Tensor l1_loss(const torch::Tensor& render, const torch::Tensor& target) {
+  return (render - target).abs().mean();
+}
+
+torch::Tensor dssim_loss(const torch::Tensor& render, const torch::Tensor& target) {
+  return 1 - model::ssim(render, target);
+}
+
+std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight) {
+  return {
+      {"l1", l1_weight, [](const LossInputs& in) { return train::l1_loss(in.render, in.target); }},
+      {"dssim", dssim_weight,
+       [](const LossInputs& in) { return train::dssim_loss(in.render, in.target); }}};
+}
+
+double psnr(const torch::Tensor& render, const torch::Tensor& target) {
+  const double mse = (render.detach() - target).pow(2).mean().item<double>();
+  return 10.0 * std::log10(1.0 / std::max(mse, 1e-12));
+}
+
+}  // namespace ddhgs::train

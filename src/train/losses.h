@@ -1,0 +1,44 @@
+// Training losses: a weighted list of named terms, so later components (the
+// spectral loss, the diffusion term) join by appending a term.
+#pragma once
+#include <torch/torch.h>
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace ddhgs::train {
+
+struct LossInputs {
+  const torch::Tensor& render;  // [H, W, N] differentiable
+  const torch::Tensor& target;  // [H, W, N]
+  int view;                     // index into Scene::views
+  int64_t iteration;            // 1-based
+};
+
+struct LossTerm {
+  std::string name;  // key in metrics.jsonl
+  double weight;
+  std::function<torch::Tensor(const LossInputs&)> compute;  // unweighted, 0-d
+};
+
+struct LossValues {
+  torch::Tensor total;                                // 0-d, differentiable
+  std::vector<std::pair<std::string, double>> terms;  // unweighted values
+};
+
+// Sums weight * term over the terms whose weight is not zero.
+LossValues evaluate_losses(const std::vector<LossTerm>& terms, const LossInputs& inputs);
+
+// Mean absolute error over every pixel and band.
+torch::Tensor l1_loss(const torch::Tensor& render, const torch::Tensor& target);
+// 1 - SSIM (model/ssim.h) over all bands.
+torch::Tensor dssim_loss(const torch::Tensor& render, const torch::Tensor& target);
+// The 3DGS baseline terms: "l1" and "dssim" with the given weights.
+std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight);
+
+// 10 log10(1 / MSE) over all elements, data range 1 (dB).
+double psnr(const torch::Tensor& render, const torch::Tensor& target);
+
+}  // namespace ddhgs::train

@@ -1,0 +1,313 @@
+#include "train/trainer.h"
+
+#include <ATen/CPUGeneratorImpl.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "io/atomic_file.h"
+#include "io/ply.h"
+#include "model/densify.h"
+#include "train/config.h"
+#include "train/init.h"
+
+namespace ddhgs::train {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+
+extern "C" void on_sigint(int) {
+  g_stop = true;
+}
+
+// Restores the previous SIGINT handler when training ends.
+class SigintGuard {
+ public:
+  SigintGuard() { previous_ = std::signal(SIGINT, on_sigint); }
+  ~SigintGuard() { std::signal(SIGINT, previous_); }
+
+ private:
+  void (*previous_)(int);
+};
+
+// Mixes the seed with a stream id, so each iteration's randomness depends only
+// on (seed, iteration) and a resumed run draws exactly what a straight one would.
+uint64_t mix(uint64_t seed, uint64_t stream) {
+  uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (stream + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+model::DensifyOptions densify_options(const json& d) {
+  model::DensifyOptions o;
+  o.grad_threshold = d.at("grad_threshold").get<double>();
+  o.percent_dense = d.at("percent_dense").get<double>();
+  o.min_opacity = d.at("min_opacity").get<double>();
+  o.max_screen_px = d.at("max_screen_px").get<double>();
+  o.max_world_fraction = d.at("max_world_fraction").get<double>();
+  o.max_gaussians = d.at("max_gaussians").get<int64_t>();
+  return o;
+}
+
+bool every(int64_t iteration, int64_t interval) {
+  return interval > 0 && iteration % interval == 0;
+}
+
+}  // namespace
+
+void Trainer::request_stop() {
+  g_stop = true;
+}
+
+Trainer::Trainer(json config, RunPaths run) : config_(std::move(config)), run_(std::move(run)) {}
+
+void Trainer::load_scene() {
+  fs::path data = config_.at("data").at("path").get<std::string>();
+  scene_ = io::load_scene(data, load_options(config_));
+  for (const auto& w : scene_->warnings) core::log_warn(w);
+  core::require(!scene_->train.empty(), data, "the dataset has no training views");
+  background_ = background(config_, scene_->bands());
+  extent_ = scene_extent(*scene_, scene_->train);
+  const json& loss = config_.at("loss");
+  losses_ = baseline_losses(loss.at("l1").get<double>(), loss.at("dssim").get<double>());
+  for (const char* later : {"spectral", "diffusion"})
+    if (loss.at(later).get<double>() != 0)
+      core::log_warn(std::string("loss.") + later +
+                     " is not part of this trainer yet; the term is left out");
+}
+
+void Trainer::create_optimizer() {
+  model::AdamOptions options;
+  options.eps = config_.at("optim").at("adam_eps").get<double>();
+  state_.adam = model::Adam(options);
+  auto tensors = state_.gaussians.tensors();
+  for (size_t i = 0; i < tensors.size(); ++i)
+    state_.adam.add(model::Gaussians::tensor_names()[i], *tensors[i], 0.0);
+}
+
+void Trainer::set_learning_rates(int64_t iteration) {
+  const json& o = config_.at("optim");
+  const double dc = o.at("sh_dc_lr").get<double>();
+  state_.adam.group("means").lr =
+      extent_ * model::exponential_lr(iteration, o.at("means_lr_init").get<double>(),
+                                      o.at("means_lr_final").get<double>(),
+                                      o.at("means_lr_max_steps").get<int64_t>());
+  state_.adam.group("log_scales").lr = o.at("scaling_lr").get<double>();
+  state_.adam.group("quats").lr = o.at("rotation_lr").get<double>();
+  state_.adam.group("logit_opacities").lr = o.at("opacity_lr").get<double>();
+  state_.adam.group("sh_dc").lr = dc;
+  state_.adam.group("sh_rest").lr = dc / o.at("sh_rest_lr_divisor").get<double>();
+}
+
+std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run, bool force) {
+  std::unique_ptr<Trainer> t(new Trainer(config, run));
+  t->load_scene();  // before touching the output, so bad input leaves it intact
+  const json& init = config.at("init");
+  InitOptions options;
+  options.random = init.at("random").get<bool>();
+  options.random_points = init.at("random_points").get<int64_t>();
+  options.opacity = init.at("opacity").get<double>();
+  options.neighbours = init.at("neighbours").get<int>();
+  options.colour_views = init.at("colour_views").get<int>();
+  options.sh_degree = config.at("model").at("sh_degree").get<int>();
+  options.seed = mix(config.at("seed").get<uint64_t>(), 0);
+  t->state_.gaussians = initialise_gaussians(*t->scene_, options);
+  t->state_.stats.reset(t->state_.gaussians.size());
+  t->state_.meta = {{"densify_added", 0}, {"densify_removed", 0}, {"seconds", 0.0}};
+  t->create_optimizer();
+  t->replacing_ = fs::exists(run.root) && !fs::is_empty(run.root);
+  create_run_folder(run, config, force);
+  core::log_info("training " + std::to_string(t->state_.gaussians.size()) + " Gaussians x " +
+                 std::to_string(t->scene_->bands()) + " bands on " +
+                 std::to_string(t->scene_->train.size()) + " views (" +
+                 std::to_string(t->scene_->test.size()) + " held out)");
+  return t;
+}
+
+std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations) {
+  json config = read_run_config(run);
+  if (iterations > 0) config["iterations"] = iterations;
+  std::unique_ptr<Trainer> t(new Trainer(config, run));
+  t->load_scene();
+  model::AdamOptions options;
+  options.eps = config.at("optim").at("adam_eps").get<double>();
+  load_checkpoint(run.checkpoint(), t->state_, options);
+  if (t->state_.gaussians.bands() != t->scene_->bands())
+    throw core::Error(run.checkpoint(), "has " + std::to_string(t->state_.gaussians.bands()) +
+                                            " bands but the dataset loads " +
+                                            std::to_string(t->scene_->bands()));
+  if (iterations > 0) io::write_file_atomically(run.config(), config.dump(2) + "\n");
+  core::log_info("resuming " + run.root.string() + " at iteration " +
+                 std::to_string(t->state_.iteration));
+  return t;
+}
+
+int Trainer::view_for(int64_t iteration) const {
+  // A fresh permutation of the training views every epoch, seeded by epoch.
+  const int64_t n = int64_t(scene_->train.size());
+  const int64_t epoch = (iteration - 1) / n, position = (iteration - 1) % n;
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(
+      mix(config_.at("seed").get<uint64_t>(), uint64_t(2 * epoch + 1)));
+  auto order = torch::randperm(n, generator, torch::kInt64);
+  return scene_->train[size_t(order[position].item<int64_t>())];
+}
+
+void Trainer::step(int64_t iteration, json& record) {
+  set_learning_rates(iteration);
+  auto& g = state_.gaussians;
+  const int64_t degree_every = config_.at("model").at("sh_degree_every").get<int64_t>();
+  if (every(iteration, degree_every) && g.active_sh_degree < g.max_sh_degree())
+    ++g.active_sh_degree;
+
+  const int view = view_for(iteration);
+  const core::Camera& camera = scene_->views[view].camera;
+  torch::Tensor target = scene_->image(view);
+  auto sink = torch::zeros({g.size(), 2}).requires_grad_(true);
+  auto out = model::render_gaussians(g, camera, background_, {}, sink);
+  LossValues loss = evaluate_losses(losses_, {out.image, target, view, iteration});
+  loss.total.backward();
+
+  const json& d = config_.at("densify");
+  const int64_t until = d.at("until_iter").get<int64_t>();
+  if (iteration < until && sink.grad().defined())
+    state_.stats.accumulate(out.radii, sink.grad(), camera.intrinsics.width,
+                            camera.intrinsics.height);
+  state_.adam.step();
+  state_.adam.zero_grad();
+
+  if (iteration < until) {
+    const int64_t reset_every = d.at("opacity_reset_every").get<int64_t>();
+    if (iteration > d.at("from_iter").get<int64_t>() && every(iteration, d.at("every"))) {
+      auto generator = at::make_generator<at::CPUGeneratorImpl>(
+          mix(config_.at("seed").get<uint64_t>(), uint64_t(2 * iteration)));
+      const int64_t before = g.size();
+      auto r = model::densify_and_prune(g, state_.adam, state_.stats, densify_options(d), extent_,
+                                        reset_every > 0 && iteration > reset_every, generator);
+      state_.meta["densify_added"] =
+          state_.meta["densify_added"].get<int64_t>() + r.cloned + r.split;
+      state_.meta["densify_removed"] = state_.meta["densify_removed"].get<int64_t>() + r.pruned;
+      core::log_debug("densify at " + std::to_string(iteration) + ": " + std::to_string(before) +
+                      " -> " + std::to_string(g.size()));
+    }
+    if (every(iteration, reset_every)) model::reset_opacity(g, state_.adam);
+  }
+
+  record = {{"iter", iteration}, {"loss", loss.total.item<double>()}};
+  for (const auto& [name, value] : loss.terms) record[name] = value;
+  record["train_psnr"] = psnr(out.image, target);
+  record["num_gaussians"] = g.size();
+  record["densify_added"] = state_.meta["densify_added"];
+  record["densify_removed"] = state_.meta["densify_removed"];
+}
+
+void Trainer::save(bool numbered) {
+  save_checkpoint(run_.checkpoint(), state_);
+  if (numbered) {
+    io::write_atomically(run_.checkpoint_at(state_.iteration), [&](const fs::path& tmp) {
+      fs::copy_file(run_.checkpoint(), tmp, fs::copy_options::overwrite_existing);
+    });
+  }
+}
+
+json Trainer::test_psnr() const {
+  // A quick held-out check; `ddhgs eval` computes the full metrics.
+  torch::NoGradGuard no_grad;
+  double noisy = 0, clean = 0;
+  int n_clean = 0;
+  for (int v : scene_->test) {
+    auto image = model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_)
+                     .image.clamp(0, 1);
+    noisy += psnr(image, scene_->image(v));
+    torch::Tensor gt = scene_->clean_image(v);
+    if (gt.defined()) {
+      clean += psnr(image, gt);
+      ++n_clean;
+    }
+  }
+  json out;
+  if (scene_->test.empty()) return out;
+  out["test_psnr"] = noisy / double(scene_->test.size());
+  if (n_clean > 0) out["test_psnr_clean"] = clean / n_clean;
+  return out;
+}
+
+void Trainer::write_outputs(double seconds) {
+  io::write_gaussian_ply(run_.gaussians(), model::to_ply(state_.gaussians, scene_->wavelengths_nm));
+  const int64_t iterations = config_.at("iterations").get<int64_t>();
+  const int degree = state_.gaussians.max_sh_degree();
+  json summary = {
+      {"iterations", iterations},
+      {"seconds", seconds},
+      {"iterations_per_second", seconds > 0 ? double(iterations) / seconds : 0.0},
+      {"num_gaussians", state_.gaussians.size()},
+      {"bands", scene_->bands()},
+      {"sh_degree", degree},
+      {"bytes_per_gaussian", model::training_bytes_per_gaussian(scene_->bands(), degree)},
+      {"peak_rss_mib", peak_rss_mib()},
+      {"densify_added", state_.meta["densify_added"]},
+      {"densify_removed", state_.meta["densify_removed"]}};
+  summary.update(test_psnr());
+  io::write_file_atomically(run_.summary(), summary.dump(2) + "\n");
+}
+
+TrainStatus Trainer::run() {
+  const int64_t total = config_.at("iterations").get<int64_t>();
+  const json& output = config_.at("output");
+  const int64_t log_every = output.at("log_every").get<int64_t>();
+  const int64_t checkpoint_every = output.at("checkpoint_every").get<int64_t>();
+  MetricsLog metrics(run_.metrics(), state_.iteration);
+  SigintGuard guard;
+  g_stop = false;
+  const double seconds_before = state_.meta.value("seconds", 0.0);
+  const auto start = std::chrono::steady_clock::now();
+  auto elapsed = [&] {
+    return seconds_before +
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  core::ProgressBar bar("train", total);
+  bar.update(state_.iteration);
+  json record;
+  while (state_.iteration < total) {
+    if (g_stop) {
+      state_.meta["seconds"] = elapsed();
+      save(false);
+      bar.finish("interrupted");
+      core::log_info("interrupted at iteration " + std::to_string(state_.iteration) +
+                     "; checkpoint saved. Continue with: ddhgs train --resume " +
+                     run_.root.string());
+      return TrainStatus::Interrupted;
+    }
+    const int64_t iteration = state_.iteration + 1;
+    step(iteration, record);
+    state_.iteration = iteration;
+    if (every(iteration, log_every) || iteration == total || iteration == 1) {
+      record["seconds"] = elapsed();
+      metrics.write(record);
+    }
+    char status[160];
+    std::snprintf(status, sizeof status, "loss %.4f  psnr %.2f dB  G %lld",
+                  record["loss"].get<double>(), record["train_psnr"].get<double>(),
+                  (long long)record["num_gaussians"].get<int64_t>());
+    bar.update(iteration, status);
+    if (every(iteration, checkpoint_every) && iteration < total) {
+      state_.meta["seconds"] = elapsed();
+      save(true);
+    }
+  }
+  state_.meta["seconds"] = elapsed();
+  save(true);
+  write_outputs(state_.meta["seconds"].get<double>());
+  bar.finish();
+  if (replacing_) finish_replacing(run_);
+  return TrainStatus::Finished;
+}
+
+}  // namespace ddhgs::train

@@ -1,0 +1,128 @@
+// `ddhgs train` end to end on a tiny synthetic scene: quality bar,
+// densification, bit-for-bit resume, and refusals.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <sstream>
+
+#include "io/atomic_file.h"
+#include "support/test_support.h"
+
+namespace ddhgs {
+namespace {
+namespace fs = std::filesystem;
+
+// Densification compressed into a 300-iteration run.
+const std::string kSchedule =
+    " --preset demo --threads 2 --set densify.from_iter=50 --set densify.every=50"
+    " --set densify.until_iter=250 --set densify.opacity_reset_every=150"
+    " --set model.sh_degree_every=100 --set optim.means_lr_max_steps=300 --checkpoint-every 100";
+
+const fs::path& scene() {
+  static const fs::path dir = [] {
+    fs::path d = test::temp_dir("train_cli_scene") / "scene";
+    std::string out;
+    int rc = test::run_command(test::ddhgs_binary() +
+                                   " synth --preset demo --width 48 --height 36 --bands 8"
+                                   " --views 12 --points 800 --out " +
+                                   d.string(),
+                               &out);
+    EXPECT_EQ(rc, 0) << out;
+    return d;
+  }();
+  return dir;
+}
+
+int train(const std::string& args, std::string* out) {
+  return test::run_command(test::ddhgs_binary() + " train " + args, out);
+}
+
+nlohmann::json read_json(const fs::path& p) {
+  return nlohmann::json::parse(io::read_file(p));
+}
+
+std::vector<nlohmann::json> read_metrics(const fs::path& p) {
+  std::vector<nlohmann::json> records;
+  std::istringstream lines(io::read_file(p));
+  for (std::string line; std::getline(lines, line);) records.push_back(nlohmann::json::parse(line));
+  return records;
+}
+
+TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
+  fs::path runs = test::temp_dir("train_cli_runs");
+  std::string out;
+  const fs::path straight = runs / "straight";
+  ASSERT_EQ(
+      train(scene().string() + " --out " + straight.string() + " --iterations 300" + kSchedule,
+            &out),
+      0)
+      << out;
+  for (const char* f : {"config.json", "gaussians.ply", "checkpoint.pt", "metrics.jsonl",
+                        "train_summary.json", "checkpoints/ckpt_100.pt", "checkpoints/ckpt_300.pt"})
+    EXPECT_TRUE(fs::exists(straight / f)) << f;
+
+  auto summary = read_json(straight / "train_summary.json");
+  EXPECT_EQ(summary["iterations"], 300);
+  EXPECT_EQ(summary["bands"], 8);
+  EXPECT_EQ(summary["bytes_per_gaussian"], (11 + 8 * 16) * 16);
+  // Fixed bars, far below what the run reaches but far above an untrained model.
+  EXPECT_GT(summary["test_psnr_clean"].get<double>(), 20.0) << summary.dump();
+  EXPECT_GT(summary["test_psnr"].get<double>(), 18.0) << summary.dump();
+
+  auto metrics = read_metrics(straight / "metrics.jsonl");
+  ASSERT_FALSE(metrics.empty());
+  EXPECT_EQ(metrics.back()["iter"], 300);
+  EXPECT_GT(metrics.back()["densify_added"].get<int>(), 0);
+  EXPECT_GT(metrics.back()["densify_removed"].get<int>(), 0);
+  EXPECT_GT(metrics.back()["train_psnr"].get<double>(),
+            metrics.front()["train_psnr"].get<double>());
+
+  auto config = read_json(straight / "config.json");
+  EXPECT_EQ(config["format_version"], 1);
+  EXPECT_EQ(config["data"]["path"], fs::absolute(scene()).lexically_normal().string());
+  EXPECT_EQ(config["densify"]["every"], 50);
+
+  // 150 iterations, then resume to 300: the same bytes as the straight run.
+  const fs::path split = runs / "split";
+  ASSERT_EQ(
+      train(scene().string() + " --out " + split.string() + " --iterations 150" + kSchedule, &out),
+      0)
+      << out;
+  ASSERT_EQ(train("--threads 2 --resume " + split.string() + " --iterations 300", &out), 0) << out;
+  EXPECT_EQ(io::read_file(split / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
+  auto resumed = read_metrics(split / "metrics.jsonl");
+  ASSERT_EQ(resumed.size(), metrics.size());
+  for (size_t i = 0; i < metrics.size(); ++i)
+    EXPECT_EQ(resumed[i]["loss"], metrics[i]["loss"]) << i;
+}
+
+TEST(TrainCli, RefusesAnExistingRunAndBadConfigs) {
+  fs::path runs = test::temp_dir("train_cli_refuse");
+  fs::create_directories(runs / "taken");
+  std::ofstream(runs / "taken" / "keep.txt") << "earlier results";
+  std::string out;
+  EXPECT_EQ(train(scene().string() + " --out " + (runs / "taken").string(), &out), 1);
+  EXPECT_NE(out.find("already exists; pass --force"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(runs / "taken" / "keep.txt"));
+
+  EXPECT_EQ(
+      train(scene().string() + " --out " + (runs / "a").string() + " --set densify.evry=3", &out),
+      1);
+  EXPECT_NE(out.find("unknown key 'densify.evry'"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(runs / "a"));
+
+  EXPECT_EQ(
+      train(scene().string() + " --out " + (runs / "b").string() + " --set iterations=x", &out), 1);
+  EXPECT_NE(out.find("'iterations' must be an integer"), std::string::npos) << out;
+
+  EXPECT_EQ(train((runs / "missing").string() + " --out " + (runs / "c").string(), &out), 1);
+  EXPECT_NE(out.find("no such dataset folder"), std::string::npos) << out;
+
+  EXPECT_EQ(train("--resume " + (runs / "taken").string(), &out), 1);
+  EXPECT_NE(out.find("not a ddhgs run folder"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace ddhgs

@@ -1,0 +1,155 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/error.h"
+#include "support/test_support.h"
+#include "train/checkpoint.h"
+#include "train/losses.h"
+#include "train/run_folder.h"
+
+using namespace ddhgs;
+
+namespace {
+
+train::TrainState make_state() {
+  train::TrainState s;
+  auto& g = s.gaussians;
+  g.means = torch::randn({4, 3});
+  g.log_scales = torch::randn({4, 3});
+  g.quats = torch::randn({4, 4});
+  g.logit_opacities = torch::randn({4, 1});
+  g.sh_dc = torch::randn({4, 5});
+  g.sh_rest = torch::randn({4, 5, 15});
+  g.active_sh_degree = 2;
+  auto tensors = g.tensors();
+  for (size_t i = 0; i < tensors.size(); ++i) {
+    tensors[i]->requires_grad_(true);
+    s.adam.add(model::Gaussians::tensor_names()[i], *tensors[i], 0.01 * double(i + 1));
+    tensors[i]->mutable_grad() = torch::randn(tensors[i]->sizes());
+  }
+  s.adam.step();
+  s.stats.reset(4);
+  s.stats.grad_sum = torch::rand({4});
+  s.iteration = 123;
+  s.meta = {{"densify_added", 5}};
+  return s;
+}
+
+}  // namespace
+
+TEST(Checkpoint, RoundTripRestoresEverything) {
+  torch::manual_seed(21);
+  auto dir = test::temp_dir("ckpt_roundtrip");
+  auto s = make_state();
+  auto module = std::make_shared<torch::nn::LinearImpl>(3, 2);
+  s.modules.emplace_back("encoder", module);
+  train::save_checkpoint(dir / "c.pt", s);
+
+  train::TrainState r;
+  auto other = std::make_shared<torch::nn::LinearImpl>(3, 2);
+  r.modules.emplace_back("encoder", other);
+  train::load_checkpoint(dir / "c.pt", r, {});
+  EXPECT_EQ(r.iteration, 123);
+  EXPECT_EQ(r.gaussians.active_sh_degree, 2);
+  EXPECT_EQ(r.meta["densify_added"], 5);
+  auto a = s.gaussians.values(), b = r.gaussians.values();
+  for (size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(torch::equal(a[i], b[i])) << i;
+  for (const auto& g : s.adam.groups()) {
+    const auto& h = r.adam.group(g.name);
+    EXPECT_TRUE(torch::equal(g.exp_avg, h.exp_avg));
+    EXPECT_TRUE(torch::equal(g.exp_avg_sq, h.exp_avg_sq));
+    EXPECT_EQ(g.step, h.step);
+    EXPECT_DOUBLE_EQ(g.lr, h.lr);
+    EXPECT_TRUE(h.param.is_same(*r.gaussians.tensors()[&g - &s.adam.groups()[0]]));
+  }
+  EXPECT_TRUE(torch::equal(s.stats.grad_sum, r.stats.grad_sum));
+  EXPECT_TRUE(torch::equal(module->weight, other->weight));
+  // No temporary file is left behind.
+  int files = 0;
+  for (auto& e : std::filesystem::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 1);
+}
+
+TEST(Checkpoint, RejectsMissingTruncatedAndForeignFiles) {
+  auto dir = test::temp_dir("ckpt_bad");
+  train::TrainState r;
+  EXPECT_THROW(train::load_checkpoint(dir / "none.pt", r, {}), core::Error);
+  std::ofstream(dir / "junk.pt") << "not a checkpoint";
+  EXPECT_THROW(train::load_checkpoint(dir / "junk.pt", r, {}), core::Error);
+
+  auto s = make_state();
+  train::save_checkpoint(dir / "good.pt", s);
+  std::ifstream in(dir / "good.pt", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(dir / "cut.pt", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  EXPECT_THROW(train::load_checkpoint(dir / "cut.pt", r, {}), core::Error);
+
+  torch::serialize::OutputArchive future;
+  future.write("meta", c10::IValue(std::string(R"({"format_version": 99, "iteration": 1})")));
+  future.save_to((dir / "future.pt").string());
+  try {
+    train::load_checkpoint(dir / "future.pt", r, {});
+    FAIL() << "a checkpoint of another format_version was accepted";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("format_version 99"), std::string::npos);
+  }
+}
+
+TEST(Checkpoint, RunFolderRefusesToOverwriteAndKeepsThePreviousRunWithForce) {
+  auto dir = test::temp_dir("run_folder");
+  train::RunPaths run{dir / "run"};
+  nlohmann::json config = {{"format_version", 1}};
+  train::create_run_folder(run, config, false);
+  std::ofstream(run.root / "gaussians.ply") << "old";
+  EXPECT_THROW(train::create_run_folder(run, config, false), core::Error);
+  EXPECT_TRUE(std::filesystem::exists(run.root / "gaussians.ply"));
+  train::create_run_folder(run, config, true);
+  EXPECT_FALSE(std::filesystem::exists(run.root / "gaussians.ply"));
+  EXPECT_TRUE(std::filesystem::exists(run.previous() / "gaussians.ply"));
+  train::finish_replacing(run);
+  EXPECT_FALSE(std::filesystem::exists(run.previous()));
+}
+
+TEST(Checkpoint, UnwritableRunFolderIsAClearError) {
+  train::RunPaths run{"/proc/ddhgs-cannot-write-here/run"};
+  try {
+    train::create_run_folder(run, {{"format_version", 1}}, false);
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot create the run folder"), std::string::npos);
+  }
+}
+
+TEST(Checkpoint, MetricsLogKeepsOnlyLinesUpToTheResumePoint) {
+  auto dir = test::temp_dir("metrics_log");
+  {
+    train::MetricsLog log(dir / "m.jsonl", -1);
+    for (int i = 1; i <= 5; ++i) log.write({{"iter", i * 10}});
+  }
+  {
+    train::MetricsLog log(dir / "m.jsonl", 30);
+    log.write({{"iter", 40}});
+  }
+  std::ifstream in(dir / "m.jsonl");
+  std::vector<int> iters;
+  for (std::string line; std::getline(in, line);)
+    iters.push_back(nlohmann::json::parse(line)["iter"].get<int>());
+  EXPECT_EQ(iters, (std::vector<int>{10, 20, 30, 40}));
+}
+
+TEST(Losses, WeightedSumAndPsnr) {
+  auto render = torch::full({12, 12, 2}, 0.5f).requires_grad_(true);
+  auto target = torch::full({12, 12, 2}, 0.4f);
+  auto values = train::evaluate_losses(train::baseline_losses(0.8, 0.2), {render, target, 0, 1});
+  ASSERT_EQ(values.terms.size(), 2u);
+  EXPECT_NEAR(values.terms[0].second, 0.1, 1e-6);
+  // Constant images: SSIM reduces to the luminance term.
+  const double ssim = (2 * 0.5 * 0.4 + 1e-4) / (0.25 + 0.16 + 1e-4);
+  EXPECT_NEAR(values.terms[1].second, 1 - ssim, 1e-5);
+  EXPECT_NEAR(values.total.item<double>(), 0.8 * 0.1 + 0.2 * (1 - ssim), 1e-5);
+  EXPECT_NEAR(train::psnr(render, target), 20.0, 1e-4);
+  // A zero weight skips the term entirely.
+  auto l1_only = train::evaluate_losses(train::baseline_losses(1.0, 0.0), {render, target, 0, 1});
+  EXPECT_EQ(l1_only.terms.size(), 1u);
+}

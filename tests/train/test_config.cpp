@@ -1,0 +1,124 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/error.h"
+#include "support/test_support.h"
+#include "train/config.h"
+
+using namespace ddhgs;
+
+namespace {
+
+void write(const std::filesystem::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const core::Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Config, PresetsResolveEveryKeyThroughExtends) {
+  auto base = train::load_preset("default");
+  auto paper = train::load_preset("paper");
+  auto demo = train::load_preset("demo");
+  EXPECT_EQ(base["iterations"], 30000);
+  EXPECT_EQ(paper["iterations"], 60000);
+  EXPECT_DOUBLE_EQ(paper["loss"]["l1"].get<double>(), 0.4);
+  EXPECT_DOUBLE_EQ(paper["loss"]["dssim"].get<double>(), 0.2);
+  // Keys the child does not set come from the parent.
+  EXPECT_DOUBLE_EQ(paper["optim"]["sh_dc_lr"].get<double>(), 2.5e-3);
+  EXPECT_DOUBLE_EQ(base["optim"]["adam_eps"].get<double>(), 1e-15);
+  EXPECT_FALSE(paper.contains("extends"));
+  EXPECT_LT(demo["iterations"].get<int>(), 30000);
+  train::validate_config(demo, "demo");
+}
+
+TEST(Config, UnknownKeysAndWrongTypesNameTheFileAndKey) {
+  auto dir = test::temp_dir("config_errors");
+  write(dir / "typo.json",
+        R"({"format_version": 1, "extends": "default", "densify": {"grad_treshold": 1}})");
+  EXPECT_NE(error_of([&] {
+              train::load_preset((dir / "typo.json").string());
+            }).find("typo.json: unknown key 'densify.grad_treshold'"),
+            std::string::npos);
+  write(dir / "type.json", R"({"format_version": 1, "iterations": "many"})");
+  EXPECT_NE(error_of([&] {
+              train::load_preset((dir / "type.json").string());
+            }).find("key 'iterations' must be an integer, got a string"),
+            std::string::npos);
+  write(dir / "float.json", R"({"format_version": 1, "iterations": 1.5})");
+  EXPECT_NE(error_of([&] { train::load_preset((dir / "float.json").string()); }).find("iterations"),
+            std::string::npos);
+  write(dir / "old.json", R"({"format_version": 0})");
+  EXPECT_NE(
+      error_of([&] { train::load_preset((dir / "old.json").string()); }).find("format_version 0"),
+      std::string::npos);
+  write(dir / "bad.json", R"({"format_version": 1,)");
+  EXPECT_NE(
+      error_of([&] { train::load_preset((dir / "bad.json").string()); }).find("not valid JSON"),
+      std::string::npos);
+  EXPECT_NE(error_of([&] { train::load_preset("no-such-preset"); }).find("no such preset"),
+            std::string::npos);
+}
+
+TEST(Config, PresetFilesCanExtendEachOtherByPath) {
+  auto dir = test::temp_dir("config_chain");
+  write(dir / "a.json", R"({"format_version": 1, "extends": "demo", "seed": 7})");
+  write(dir / "b.json", R"({"format_version": 1, "extends": "a.json", "loss": {"l1": 0.5}})");
+  auto c = train::load_preset((dir / "b.json").string());
+  EXPECT_EQ(c["seed"], 7);
+  EXPECT_DOUBLE_EQ(c["loss"]["l1"].get<double>(), 0.5);
+  EXPECT_EQ(c["iterations"], train::load_preset("demo")["iterations"]);
+  write(dir / "loop.json", R"({"format_version": 1, "extends": "loop.json"})");
+  EXPECT_NE(error_of([&] { train::load_preset((dir / "loop.json").string()); }).find("cycle"),
+            std::string::npos);
+}
+
+TEST(Config, SetOverridesOneKeyWithTypeChecks) {
+  auto c = train::load_preset("default");
+  train::apply_assignment(c, "densify.grad_threshold=0.001");
+  EXPECT_DOUBLE_EQ(c["densify"]["grad_threshold"].get<double>(), 0.001);
+  train::apply_assignment(c, "optim.sh_dc_lr=1");  // an integer is a valid number
+  EXPECT_DOUBLE_EQ(c["optim"]["sh_dc_lr"].get<double>(), 1.0);
+  train::apply_assignment(c, "model.background=[0.1, 0.2, 0.3]");
+  EXPECT_TRUE(torch::allclose(train::background(c, 3), torch::tensor({0.1f, 0.2f, 0.3f})));
+  EXPECT_THROW(train::background(c, 4), core::Error);
+  train::apply_assignment(c, "data.rgb=true");
+  EXPECT_TRUE(c["data"]["rgb"].get<bool>());
+  EXPECT_THROW(train::apply_assignment(c, "densify.nope=1"), core::Error);
+  EXPECT_THROW(train::apply_assignment(c, "densify=1"), core::Error);
+  EXPECT_THROW(train::apply_assignment(c, "iterations=abc"), core::Error);
+  EXPECT_THROW(train::apply_assignment(c, "data.rgb=1"), core::Error);
+  EXPECT_THROW(train::apply_assignment(c, "no_equals_sign"), core::Error);
+  train::validate_config(c, "overrides");
+}
+
+TEST(Config, LoadOptionsMirrorTheDataSection) {
+  auto c = train::load_preset("default");
+  train::apply_assignment(c, "data.downscale=4");
+  train::apply_assignment(c, "data.band_min_nm=450");
+  train::apply_assignment(c, "data.bin=2");
+  auto o = train::load_options(c);
+  EXPECT_EQ(o.downscale, 4);
+  EXPECT_DOUBLE_EQ(o.band_min_nm, 450);
+  EXPECT_EQ(o.bin, 2);
+  train::apply_assignment(c, "data.downscale=0");
+  EXPECT_THROW(train::load_options(c), core::Error);
+}
+
+TEST(Config, ResolvedConfigMustBeComplete) {
+  auto c = train::load_preset("default");
+  c["densify"].erase("every");
+  EXPECT_NE(error_of([&] {
+              train::validate_config(c, "run/config.json");
+            }).find("missing key 'densify.every'"),
+            std::string::npos);
+}
