@@ -131,12 +131,29 @@ TiffLayoutInfo inspect(TiffFile& file, const fs::path& path) {
   return info;
 }
 
+template <typename T>
+void scatter_one(const uint8_t* src, int64_t pixels, uint8_t* dst, int64_t bands) {
+  for (int64_t p = 0; p < pixels; ++p)
+    std::memcpy(dst + size_t(p * bands) * sizeof(T), src + size_t(p) * sizeof(T), sizeof(T));
+}
+
 // Copies pixels of `count` samples each into a [H, W, B] buffer at band `band`.
+// One page per band (count 1) is the common slow case: typed copies there.
 void scatter(const uint8_t* src, int64_t pixels, int64_t count, size_t sample_bytes, uint8_t* dst,
              int64_t bands) {
   size_t src_stride = size_t(count) * sample_bytes, dst_stride = size_t(bands) * sample_bytes;
-  for (int64_t p = 0; p < pixels; ++p)
-    std::memcpy(dst + size_t(p) * dst_stride, src + size_t(p) * src_stride, src_stride);
+  if (count == bands) {
+    std::memcpy(dst, src, size_t(pixels) * src_stride);
+  } else if (count == 1 && sample_bytes == 1) {
+    scatter_one<uint8_t>(src, pixels, dst, bands);
+  } else if (count == 1 && sample_bytes == 2) {
+    scatter_one<uint16_t>(src, pixels, dst, bands);
+  } else if (count == 1 && sample_bytes == 4) {
+    scatter_one<uint32_t>(src, pixels, dst, bands);
+  } else {
+    for (int64_t p = 0; p < pixels; ++p)
+      std::memcpy(dst + size_t(p) * dst_stride, src + size_t(p) * src_stride, src_stride);
+  }
 }
 
 // Reads the current page into bands [band, band + samples) of out [H, W, B].
