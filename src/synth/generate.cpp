@@ -1,0 +1,238 @@
+#include "synth/generate.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <nlohmann/json.hpp>
+
+#include "core/colour.h"
+#include "core/error.h"
+#include "core/log.h"
+#include "io/atomic_file.h"
+#include "io/cube.h"
+#include "io/image.h"
+#include "io/ply.h"
+#include "io/transforms.h"
+#include "synth/render.h"
+
+namespace ddhgs::synth {
+
+namespace fs = std::filesystem;
+
+std::vector<double> SynthConfig::wavelengths_nm() const {
+  std::vector<double> out;
+  for (int i = 0; i < bands; ++i)
+    out.push_back(bands == 1 ? wl_min_nm : wl_min_nm + (wl_max_nm - wl_min_nm) * i / (bands - 1));
+  return out;
+}
+
+std::vector<std::string> preset_names() {
+  return {"demo", "bayspec", "surface-optics", "noisy-edges"};
+}
+
+SynthConfig preset_config(const std::string& name) {
+  SynthConfig c;
+  c.preset = name;
+  if (name == "demo") return c;
+  if (name == "noisy-edges") {
+    c.noisy_edges = true;
+    return c;
+  }
+  if (name == "bayspec") {  // BaySpec turntable: 640 x 512, 141 bands, 433 views
+    c.width = 640;
+    c.height = 512;
+    c.bands = 141;
+    c.wl_min_nm = 400;
+    c.wl_max_nm = 1100;
+    c.views = 433;
+    c.rings = 5;
+    c.min_elevation_deg = 5;
+    c.max_elevation_deg = 65;
+    c.fov_deg = 35;
+    c.supersample = 2;
+    c.points = 5000;
+    return c;
+  }
+  if (name == "surface-optics") {  // tripod 2 m away, narrow field of view
+    c.width = 696;
+    c.height = 520;
+    c.bands = 128;
+    c.wl_min_nm = 370;
+    c.wl_max_nm = 1100;
+    c.views = 48;
+    c.rings = 2;
+    c.min_elevation_deg = 8;
+    c.max_elevation_deg = 25;
+    c.fov_deg = 9;
+    c.supersample = 2;
+    c.points = 4000;
+    return c;
+  }
+  std::string names;
+  for (const auto& n : preset_names()) names += (names.empty() ? "" : ", ") + n;
+  throw core::Error("--preset " + name + ": expected one of " + names);
+}
+
+namespace {
+
+void validate(const SynthConfig& c) {
+  core::require(c.width >= 8 && c.height >= 8, "synth: expected --width and --height >= 8");
+  core::require(c.bands >= 1, "synth: expected --bands >= 1");
+  core::require(c.views >= 1, "synth: expected --views >= 1");
+  core::require(c.bands == 1 || c.wl_max_nm > c.wl_min_nm, "synth: expected --wl-max > --wl-min");
+  core::require(c.wl_min_nm > 0, "synth: expected --wl-min > 0 nm");
+  core::require(c.fov_deg > 0 && c.fov_deg < 170, "synth: expected 0 < --fov-deg < 170");
+  core::require(c.noise_scale >= 0, "synth: expected --noise-scale >= 0");
+  core::require(c.supersample >= 1 && c.supersample <= 8,
+                "synth: expected 1 <= --supersample <= 8");
+  core::require(c.points >= 0, "synth: expected --points >= 0");
+}
+
+// float [H, W, N] in [0, 1] -> uint16 samples held in int16 (see io::SampleType).
+torch::Tensor to_u16(const torch::Tensor& unit) {
+  auto v = (unit.clamp(0, 1) * 65535.0f).round().to(torch::kInt32);
+  return torch::where(v > 32767, v - 65536, v).to(torch::kInt16);
+}
+
+std::string view_name(int view, int views) {
+  size_t digits = std::max<size_t>(3, std::to_string(views - 1).size());
+  std::string number = std::to_string(view);
+  return "r_" + std::string(digits - std::min(digits, number.size()), '0') + number;
+}
+
+nlohmann::json describe(const SynthConfig& c, const SpectralSetup& setup, const PlantScene& scene) {
+  nlohmann::json j;
+  j["generator"] = "ddhgs synth";
+  j["preset"] = c.preset;
+  j["seed"] = c.seed;
+  j["width"] = c.width;
+  j["height"] = c.height;
+  j["bands"] = c.bands;
+  j["wavelengths_nm"] = setup.wavelengths_nm;
+  j["views"] = c.views;
+  j["rings"] = c.rings;
+  j["elevation_deg"] = {c.min_elevation_deg, c.max_elevation_deg};
+  j["fov_deg"] = c.fov_deg;
+  j["fill"] = c.fill;
+  j["supersample"] = c.supersample;
+  j["ground"] = c.ground;
+  j["leaves"] = scene.leaves.size();
+  j["points"] = c.points;
+  j["point_jitter"] = c.point_jitter;
+  j["cube_dtype"] = "uint16 (value / 65535)";
+  j["clean_folder"] = "clean";
+  j["images"] = "pseudo-RGB (CIE 1931, D65) of the clean cube divided by band_gain";
+  j["noise"] = {
+      {"model", "std = scale * sqrt(shot * s / q + (read / q)^2), q = response^edge_power"},
+      {"shot", setup.noise.shot},
+      {"read", setup.noise.read},
+      {"scale", setup.noise.scale},
+      {"edge_power", setup.noise.edge_power}};
+  j["sensor_response"] = setup.response;
+  j["band_gain"] = setup.band_gain;
+  j["lighting"] = {
+      {"to_light",
+       {setup.lighting.to_light.x, setup.lighting.to_light.y, setup.lighting.to_light.z}},
+      {"sun", setup.lighting.sun},
+      {"ambient", setup.lighting.ambient},
+      {"backdrop", setup.lighting.backdrop}};
+  return j;
+}
+
+}  // namespace
+
+SynthResult write_synthetic_scene(const SynthConfig& config, const fs::path& out, bool force) {
+  validate(config);
+  auto start = std::chrono::steady_clock::now();
+  if (fs::exists(out)) {
+    core::require(fs::is_directory(out), out, "exists and is not a folder");
+    core::require(force || fs::is_empty(out), out,
+                  "exists and is not empty; pass --force to replace it");
+  }
+  fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
+  fs::create_directories(parent);
+  fs::path tmp = parent / ("." + out.filename().string() + ".tmp-" + std::to_string(getpid()));
+  fs::remove_all(tmp);
+
+  SynthResult result;
+  try {
+    for (const char* sub : {"hyperspectral", "clean", "images"}) fs::create_directories(tmp / sub);
+    PlantScene scene = PlantScene::build(config.seed, config.ground);
+    NoiseModel noise;
+    noise.scale = config.noise_scale;
+    noise.edge_power = config.noisy_edges ? 2.0 : 1.0;
+    SpectralSetup setup = make_spectral_setup(scene, config.wavelengths_nm(), noise);
+    RigOptions rig;
+    rig.views = config.views;
+    rig.rings = config.rings;
+    rig.min_elevation_deg = config.min_elevation_deg;
+    rig.max_elevation_deg = config.max_elevation_deg;
+    rig.fov_deg = config.fov_deg;
+    rig.width = config.width;
+    rig.height = config.height;
+    rig.fill = config.fill;
+    auto cameras = turntable_rig(scene, rig);
+
+    io::TransformsFile transforms;
+    transforms.wavelengths_nm = setup.wavelengths_nm;
+    transforms.ply_file_path = "points.ply";
+    std::vector<float> xyz, spectra;
+    std::vector<uint8_t> rgb;
+    const int per_view = (config.points + config.views - 1) / config.views;
+    core::ProgressBar bar("synth", int64_t(cameras.size()));
+    for (int v = 0; v < int(cameras.size()); ++v) {
+      const std::string name = view_name(v, config.views);
+      torch::Tensor clean = render_clean(scene, setup, cameras[v], config.supersample);
+      // One generator per view, seeded from (seed, view): results do not
+      // depend on the thread count or on which views are rendered.
+      std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), uint32_t(v), 0x5eedu};
+      std::mt19937_64 rng(seq);
+      torch::Tensor noisy = add_noise(clean, setup, rng);
+      torch::Tensor image =
+          core::pseudo_rgb_u8(radiance_factor(clean, setup), setup.wavelengths_nm);
+      io::write_npy(tmp / "hyperspectral" / (name + ".npy"), to_u16(noisy), io::SampleType::U16);
+      io::write_npy(tmp / "clean" / (name + ".npy"), to_u16(clean), io::SampleType::U16);
+      io::write_png(tmp / "images" / (name + ".png"), image);
+
+      ViewPoints points =
+          sample_points(scene, cameras[v], clean, per_view, config.point_jitter, rng);
+      xyz.insert(xyz.end(), points.xyz.begin(), points.xyz.end());
+      spectra.insert(spectra.end(), points.spectra.begin(), points.spectra.end());
+      auto flat = image.reshape({-1, 3});
+      for (int64_t pixel : points.pixels)
+        for (int ch = 0; ch < 3; ++ch) rgb.push_back(flat[pixel][ch].item<uint8_t>());
+
+      io::TransformsFrame frame;
+      frame.file_path = "images/" + name + ".png";
+      frame.hyperspectral_file_path = "hyperspectral/" + name + ".npy";
+      frame.intrinsics = cameras[v].intrinsics;
+      frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(cameras[v].world_to_camera);
+      transforms.frames.push_back(frame);
+      bar.update(v + 1);
+    }
+    bar.finish();
+
+    io::PointCloud cloud;
+    const int64_t count = int64_t(xyz.size() / 3);
+    cloud.xyz = torch::from_blob(xyz.data(), {count, 3}, torch::kFloat32).clone();
+    cloud.rgb = torch::from_blob(rgb.data(), {count, 3}, torch::kUInt8).clone();
+    cloud.spectra =
+        torch::from_blob(spectra.data(), {count, int64_t(setup.bands())}, torch::kFloat32).clone();
+    io::write_point_ply(tmp / "points.ply", cloud);
+    io::write_transforms(tmp / "transforms.json", transforms);
+    io::write_file_atomically(tmp / "synth.json", describe(config, setup, scene).dump(2) + "\n");
+
+    if (fs::exists(out)) fs::remove_all(out);
+    fs::rename(tmp, out);
+    result.views = int(cameras.size());
+    result.points = int(count);
+  } catch (...) {
+    std::error_code ignored;
+    fs::remove_all(tmp, ignored);
+    throw;
+  }
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace ddhgs::synth

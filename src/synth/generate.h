@@ -1,0 +1,52 @@
+// `ddhgs synth`: presets and the writer of a complete synthetic scene folder.
+//
+// Output (Hyper-NeRF compatible): transforms.json, hyperspectral/r_NNN.npy
+// (noisy, uint16: value / 65535), clean/r_NNN.npy (clean ground truth, same
+// type), images/r_NNN.png (pseudo-RGB of the clean reflectance x shading),
+// points.ply (sparse points with rgb and spectra) and synth.json (parameters).
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace ddhgs::synth {
+
+struct SynthConfig {
+  std::string preset = "demo";
+  uint64_t seed = 0;
+  int width = 128, height = 96;  // pixels
+  int bands = 40;
+  double wl_min_nm = 400, wl_max_nm = 1000;  // first and last band centres
+  int views = 40;
+  int rings = 3;
+  double min_elevation_deg = 12, max_elevation_deg = 55;
+  double fov_deg = 40;  // horizontal
+  double fill = 0.95;   // fraction of the frame (each axis) the plant's box fills
+  int supersample = 3;  // rays per pixel along each axis
+  double noise_scale = 1.0;
+  bool noisy_edges = false;  // noise grows as response^-2 instead of response^-1
+  bool ground = true;
+  int points = 3000;            // sparse points in points.ply (about)
+  double point_jitter = 0.004;  // scene units, like an SfM cloud's error
+
+  std::vector<double> wavelengths_nm() const;
+};
+
+// "demo", "bayspec", "surface-optics", "noisy-edges"; core::Error otherwise.
+SynthConfig preset_config(const std::string& name);
+std::vector<std::string> preset_names();
+
+struct SynthResult {
+  int views = 0;
+  int points = 0;
+  double seconds = 0;
+};
+
+// Renders and writes the scene to out. An existing non-empty out is refused
+// unless force; everything is written to a temporary sibling folder that is
+// renamed at the end, so an interrupted run leaves nothing half-written.
+SynthResult write_synthetic_scene(const SynthConfig& config, const std::filesystem::path& out,
+                                  bool force);
+
+}  // namespace ddhgs::synth

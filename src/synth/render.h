@@ -1,0 +1,79 @@
+// Spectral ray casting of the plant scene, the turntable camera rig, sensor
+// noise and the sparse point cloud.
+#pragma once
+#include <torch/torch.h>
+
+#include <random>
+#include <vector>
+
+#include "core/camera.h"
+#include "synth/plant.h"
+#include "synth/spectra.h"
+
+namespace ddhgs::synth {
+
+// Lighting: one directional sun plus ambient; the backdrop is lit evenly.
+struct Lighting {
+  core::Vec3 to_light{0.4, -0.5, 0.9};  // direction towards the light (normalised on use)
+  double sun = 0.9;
+  double ambient = 0.25;
+  double backdrop = 0.7;  // radiance factor of the background
+};
+
+// Everything that turns a hit into N band values, tabulated on the band grid.
+struct SpectralSetup {
+  std::vector<double> wavelengths_nm;  // N
+  std::vector<float> reflectance;      // [M, N] material reflectances, row-major
+  std::vector<float> band_gain;        // [N] lamp x response x normalisation
+  std::vector<double> response;        // [N] sensor quantum efficiency
+  Lighting lighting;
+  NoiseModel noise;
+  int bands() const { return int(wavelengths_nm.size()); }
+};
+
+// Tabulates the scene's materials on the grid and picks the gain that puts the
+// brightest diffuse material at about 0.85 of full scale.
+SpectralSetup make_spectral_setup(const PlantScene& scene,
+                                  const std::vector<double>& wavelengths_nm,
+                                  const NoiseModel& noise, const Lighting& lighting = {});
+
+struct RigOptions {
+  int views = 40;
+  int rings = 3;
+  double min_elevation_deg = 12, max_elevation_deg = 55;
+  double fov_deg = 40;  // horizontal
+  int width = 128, height = 96;
+  double fill = 0.95;  // fraction of the frame (each axis) the plant's box fills
+};
+
+// Rings of cameras at several elevations looking at the plant's centre; more
+// views on the lower (longer) rings. Cameras use OpenCV axes, world z is up.
+std::vector<core::Camera> turntable_rig(const PlantScene& scene, const RigOptions& options);
+
+// World ray through pixel position (x, y) (pixel centres at +0.5).
+Ray camera_ray(const core::Camera& camera, double x, double y);
+
+// Clean signal float32 [H, W, N] in [0, 1], supersample x supersample rays per pixel.
+torch::Tensor render_clean(const PlantScene& scene, const SpectralSetup& setup,
+                           const core::Camera& camera, int supersample);
+
+// Noisy copy of clean [H, W, N]: per-band shot + read noise (NoiseModel), clamped to [0, 1].
+torch::Tensor add_noise(const torch::Tensor& clean, const SpectralSetup& setup,
+                        std::mt19937_64& rng);
+
+// Radiance factor [H, W, N] (clean / band_gain): reflectance x shading, for previews.
+torch::Tensor radiance_factor(const torch::Tensor& clean, const SpectralSetup& setup);
+
+// Points on visible surfaces of one view: count pixels drawn at random whose
+// centre ray hits something other than the background; each point gets the
+// clean spectrum of its pixel and a small position jitter (std in scene units).
+struct ViewPoints {
+  std::vector<float> xyz;       // [P, 3]
+  std::vector<float> spectra;   // [P, N]
+  std::vector<int64_t> pixels;  // [P] y * W + x
+};
+ViewPoints sample_points(const PlantScene& scene, const core::Camera& camera,
+                         const torch::Tensor& clean, int count, double jitter,
+                         std::mt19937_64& rng);
+
+}  // namespace ddhgs::synth
