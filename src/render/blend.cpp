@@ -4,7 +4,12 @@
 #include <omp.h>
 
 #include <cmath>
+#include <cstring>
 #include <vector>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
 
 #include "render/channel_kernels.h"
 
@@ -12,9 +17,8 @@ namespace ddhgs::render {
 namespace {
 
 constexpr int kPixels = kTileSize * kTileSize;
-// Gaussians per chunk: their padded colour rows (32 x 144 floats at 141
-// bands) stay in L1 while every pixel of the tile reads them.
-constexpr int kChunk = 32;
+constexpr int kRowLanes = 8;  // pixels of a row evaluated together
+constexpr int kChunk = 64;    // Gaussians per chunk: per-pair indices fit a byte
 constexpr float kMinAlpha = 1.0f / 255.0f;
 constexpr float kMaxAlpha = 0.99f;
 constexpr float kMinTransmittance = 1e-4f;
@@ -23,23 +27,41 @@ enum Slot { kMx, kMy, kConA, kConB, kConC, kOpacity, kDepth, kSlots = 8 };
 
 // Per-Gaussian screen data the inner loop reads, packed for locality.
 struct Splat {
-  float mx, my, a, b, c, opacity;
+  float mx, my, a, b, c, opacity, depth;
   float skip_power;    // power beyond which alpha < 1/255 for sure
   float ext_x, ext_y;  // half extents (px) of the region with alpha >= 1/255
 };
 
-// Splats computed once per call and shared by all tiles.
-std::vector<Splat>& splats_for(const Projected& p) {
-  thread_local std::vector<Splat> splats;
-  const int64_t count = p.means2d.size(0);
-  splats.resize(count);
+// Visible Gaussians in depth-rank order with padded colour rows: tiles walk
+// both forwards through memory instead of jumping between random rows.
+struct Ranked {
+  std::vector<Splat> splats;  // [V]
+  std::vector<float> colors;  // [V, np]
+};
+
+const Ranked& rank_gaussians(const Projected& p, const torch::Tensor& colors, const TileBins& bins,
+                             int np) {
+  thread_local Ranked cache;
+  const int64_t visible = int64_t(bins.order.size()), n = colors.size(1);
+  cache.splats.resize(visible);
+  cache.colors.resize(size_t(visible) * np);
+  // Workers must write the caller's buffers, not their own thread_local ones.
+  Splat* splats = cache.splats.data();
+  float* ranked_colors = cache.colors.data();
+  const int32_t* order = bins.order.data();
   const float* m = p.means2d.data_ptr<float>();
   const float* con = p.conics.data_ptr<float>();
   const float* op = p.opacities.data_ptr<float>();
-  at::parallel_for(0, count, 4096, [&](int64_t begin, int64_t end) {
-    for (int64_t i = begin; i < end; ++i) {
-      Splat& s = splats[i];
-      s = {m[2 * i], m[2 * i + 1], con[3 * i], con[3 * i + 1], con[3 * i + 2], op[i], -1, -1, -1};
+  const float* dep = p.depths.data_ptr<float>();
+  const float* col = colors.data_ptr<float>();
+  at::parallel_for(0, visible, 1024, [&](int64_t begin, int64_t end) {
+    for (int64_t r = begin; r < end; ++r) {
+      const int64_t i = order[r];
+      std::copy(col + i * n, col + (i + 1) * n, ranked_colors + r * np);
+      std::fill(ranked_colors + r * np + n, ranked_colors + (r + 1) * np, 0.0f);
+      Splat& s = splats[r];
+      s = {m[2 * i], m[2 * i + 1], con[3 * i], con[3 * i + 1], con[3 * i + 2], op[i], dep[i],
+           -1,       -1,           -1};
       // o exp(-power) >= 1/255  <=>  power <= log(255 o); the ellipse
       // power = thr has half extents sqrt(2 thr cov_xx), cov = conic^-1.
       const double thr = std::log(255.0 * op[i]);
@@ -50,7 +72,7 @@ std::vector<Splat>& splats_for(const Projected& p) {
       s.ext_y = float(std::sqrt(2 * (thr + 1e-3) * s.a / det) + 1);
     }
   });
-  return splats;
+  return cache;
 }
 
 // Per-thread scratch for one tile; thread_local in the OpenMP workers, so it
@@ -58,19 +80,19 @@ std::vector<Splat>& splats_for(const Projected& p) {
 struct TileScratch {
   int x0, y0, x1, y1, ndone, npix;
   float T[kPixels];
-  uint8_t done[kPixels];
-  uint8_t count[kPixels];           // pairs per pixel in this chunk
-  uint8_t gauss[kPixels * kChunk];  // chunk-local Gaussian of each pair
-  float weight[kPixels * kChunk];   // alpha * T
-  float raw[kPixels * kChunk];      // o exp(-power) before the 0.99 clamp
-  float trans[kPixels * kChunk];    // T before the pair
-  int16_t gcount[kChunk];           // pairs per Gaussian in this chunk
+  uint8_t done[kPixels + kRowLanes];  // padded: rows are read 8 pixels at a time
+  uint8_t count[kPixels];             // pairs per pixel in this chunk
+  uint8_t gauss[kPixels * kChunk];    // chunk-local Gaussian of each pair
+  float weight[kPixels * kChunk];     // alpha * T
+  float raw[kPixels * kChunk];        // o exp(-power) before the 0.99 clamp
+  float trans[kPixels * kChunk];      // T before the pair
+  int16_t gcount[kChunk];             // pairs per Gaussian in this chunk
   uint8_t gpix[kChunk * kPixels];
   float gweight[kChunk * kPixels];
-  float zc[kChunk];
-  std::vector<float> cols;  // [kChunk, np] padded colour rows
-  std::vector<float> acc;   // [kPixels, np] colour sums (forward) or dL/dimage (backward)
-  std::vector<float> tmp;   // [np]
+  const float* col_rows[kChunk];   // colour row of each chunk Gaussian
+  const float* pix_rows[kPixels];  // row of acc for each pixel
+  std::vector<float> acc;          // [kPixels, np] colour sums (forward) or dL/dimage (backward)
+  std::vector<float> tmp;          // [np]
 
   void start(const TileBins& bins, int tile, int width, int height, int np) {
     x0 = (tile % bins.tiles_x) * kTileSize, y0 = (tile / bins.tiles_x) * kTileSize;
@@ -78,40 +100,106 @@ struct TileScratch {
     npix = (x1 - x0) * (y1 - y0);
     ndone = 0;
     std::fill(T, T + kPixels, 1.0f);
-    std::fill(done, done + kPixels, uint8_t(0));
-    cols.resize(size_t(kChunk) * np);
+    std::fill(done, done + kPixels + kRowLanes, uint8_t(0));
     acc.assign(size_t(kPixels) * np, 0.0f);
     tmp.resize(np);
+    for (int p = 0; p < kPixels; ++p) pix_rows[p] = acc.data() + size_t(p) * np;
   }
+  int pixel(int x, int y) const { return (y - y0) * kTileSize + x - x0; }
 };
+
+// Tile lists jump through the rank-ordered arrays (a tile holds a small
+// fraction of all Gaussians), so the next chunk's splats and colour rows are
+// requested while the current chunk is blended.
+void prefetch_chunk(const Ranked& ranked, const int32_t* ranks, int m, int np) {
+  constexpr int kLineFloats = 16;  // 64-byte cache lines
+  for (int k = 0; k < m; ++k) {
+    __builtin_prefetch(&ranked.splats[ranks[k]]);
+    const float* row = ranked.colors.data() + size_t(ranks[k]) * np;
+    for (int c = 0; c < np; c += kLineFloats) __builtin_prefetch(row + c);
+  }
+}
 
 TileScratch& scratch() {
   thread_local TileScratch s;
   return s;
 }
 
-// Gathers the chunk's colour rows (zero padded) and depths.
-void gather_chunk(TileScratch& s, const int32_t* ids, int m, const float* colors, int64_t n, int np,
-                  const float* depths) {
-  for (int k = 0; k < m; ++k) {
-    float* row = s.cols.data() + size_t(k) * np;
-    std::copy(colors + ids[k] * n, colors + ids[k] * n + n, row);
-    std::fill(row + n, row + np, 0.0f);
-    s.zc[k] = depths[ids[k]];
-  }
+#if defined(__AVX2__) && defined(__FMA__)
+// exp(x) for x <= 0 (Cephes expf: Cody-Waite reduction and a degree-5
+// polynomial, about 1 ulp): 8 lanes for the price of one libm call.
+inline __m256 exp_nonpositive(__m256 x) {
+  x = _mm256_max_ps(x, _mm256_set1_ps(-87.0f));
+  const __m256 n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)),
+                                   _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+  __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(0.693359375f), x);
+  r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-2.12194440e-4f), r);
+  __m256 p = _mm256_set1_ps(1.9875691500e-4f);
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.3981999507e-3f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(8.3334519073e-3f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(4.1665795894e-2f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.6666665459e-1f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(5.0000001201e-1f));
+  p = _mm256_fmadd_ps(p, _mm256_mul_ps(r, r), _mm256_add_ps(r, _mm256_set1_ps(1.0f)));
+  const __m256i scale =
+      _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
+  return _mm256_mul_ps(p, _mm256_castsi256_ps(scale));
 }
 
-// The 3DGS per-pixel recurrence for one chunk, Gaussian-major over each
-// splat's clipped bounding box. One function for forward and backward so the
-// backward replays exactly the same float operations and decisions.
-void blend_chunk(TileScratch& s, const Splat* splats, const int32_t* ids, int m,
+// Pixels x .. x+count-1 of one row (count <= 8) against splat g: bit i is set
+// where pixel x+i is not done and has alpha >= 1/255; raw[i] = o exp(-power).
+inline unsigned splat_row(const Splat& g, int x, int count, float dy, const uint8_t* done,
+                          float* raw) {
+  const __m256 xs =
+      _mm256_add_ps(_mm256_set1_ps(float(x) + 0.5f), _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
+  const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(g.mx), xs);
+  const __m256 dyv = _mm256_set1_ps(dy);
+  // power = 0.5 (a dx^2 + c dy^2) + b dx dy
+  const __m256 quad =
+      _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(g.a), dx), dx, _mm256_set1_ps(g.c * dy * dy));
+  const __m256 power = _mm256_fmadd_ps(_mm256_set1_ps(0.5f), quad,
+                                       _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(g.b), dx), dyv));
+  const __m256 r = _mm256_mul_ps(_mm256_set1_ps(g.opacity),
+                                 exp_nonpositive(_mm256_sub_ps(_mm256_setzero_ps(), power)));
+  _mm256_storeu_ps(raw, r);
+  const __m256 alpha = _mm256_min_ps(r, _mm256_set1_ps(kMaxAlpha));
+  const __m256 keep = _mm256_and_ps(_mm256_cmp_ps(power, _mm256_set1_ps(g.skip_power), _CMP_LE_OQ),
+                                    _mm256_cmp_ps(alpha, _mm256_set1_ps(kMinAlpha), _CMP_GE_OQ));
+  uint64_t done8;
+  std::memcpy(&done8, done, sizeof done8);
+  const __m256i live = _mm256_cmpeq_epi32(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(int64_t(done8))),
+                                          _mm256_setzero_si256());
+  const unsigned bits =
+      unsigned(_mm256_movemask_ps(_mm256_and_ps(keep, _mm256_castsi256_ps(live))));
+  return bits & ((1u << count) - 1);
+}
+#else
+inline unsigned splat_row(const Splat& g, int x, int count, float dy, const uint8_t* done,
+                          float* raw) {
+  unsigned bits = 0;
+  for (int i = 0; i < count; ++i) {
+    const float dx = g.mx - (float(x + i) + 0.5f);
+    const float power = 0.5f * (g.a * dx * dx + g.c * dy * dy) + g.b * dx * dy;
+    raw[i] = g.opacity * std::exp(-power);
+    const float alpha = raw[i] < kMaxAlpha ? raw[i] : kMaxAlpha;
+    if (!done[i] && power <= g.skip_power && alpha >= kMinAlpha) bits |= 1u << i;
+  }
+  return bits;
+}
+#endif
+
+// The 3DGS per-pixel recurrence for one chunk of depth ranks, Gaussian-major
+// over each splat's clipped bounding box. One function for forward and
+// backward, so the backward replays exactly the same float operations.
+void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int np,
                  bool gaussian_lists) {
   std::fill(s.count, s.count + kPixels, uint8_t(0));
   for (int k = 0; k < m; ++k) {
-    const Splat& g = splats[ids[k]];
+    const Splat& g = ranked.splats[ranks[k]];
+    s.col_rows[k] = ranked.colors.data() + size_t(ranks[k]) * np;
     s.gcount[k] = 0;
     if (g.ext_x < 0) continue;
-    auto clip = [](float v, int lo, int hi) { return int(std::fmin(std::fmax(v, lo), hi)); };
+    auto clip = [](float v, int lo, int hi) { return int(v < lo ? lo : v > hi ? hi : v); };
     // Pixel x has its centre at x + 0.5.
     const int xa = clip(std::floor(g.mx - g.ext_x - 0.5f), s.x0, s.x1);
     const int xb = clip(std::ceil(g.mx + g.ext_x - 0.5f) + 1, s.x0, s.x1);
@@ -119,41 +207,38 @@ void blend_chunk(TileScratch& s, const Splat* splats, const int32_t* ids, int m,
     const int yb = clip(std::ceil(g.my + g.ext_y - 0.5f) + 1, s.y0, s.y1);
     for (int y = ya; y < yb; ++y) {
       const float dy = g.my - (float(y) + 0.5f);
-      const int row = (y - s.y0) * kTileSize - s.x0;
-      for (int x = xa; x < xb; ++x) {
-        const int p = row + x;
-        if (s.done[p]) continue;
-        const float dx = g.mx - (float(x) + 0.5f);
-        const float power = 0.5f * (g.a * dx * dx + g.c * dy * dy) + g.b * dx * dy;
-        if (power > g.skip_power) continue;
-        const float raw = g.opacity * std::exp(-power);
-        const float alpha = std::fmin(kMaxAlpha, raw);
-        if (alpha < kMinAlpha) continue;
-        const float t = s.T[p];
-        const float next = t * (1.0f - alpha);
-        if (next < kMinTransmittance) {
-          s.done[p] = 1;
-          ++s.ndone;
-          continue;
-        }
-        const int j = p * kChunk + s.count[p]++;
-        s.gauss[j] = uint8_t(k);
-        s.weight[j] = alpha * t;
-        s.raw[j] = raw;
-        s.trans[j] = t;
-        s.T[p] = next;
-        if (gaussian_lists) {
-          const int q = k * kPixels + s.gcount[k]++;
-          s.gpix[q] = uint8_t(p);
-          s.gweight[q] = alpha * t;
+      const int row = s.pixel(0, y);
+      for (int x = xa; x < xb; x += kRowLanes) {
+        float raw8[kRowLanes];
+        unsigned lanes = splat_row(g, x, std::min(kRowLanes, xb - x), dy, s.done + row + x, raw8);
+        while (lanes) {
+          const int i = __builtin_ctz(lanes);
+          lanes &= lanes - 1;
+          const int p = row + x + i;
+          const float raw = raw8[i];
+          const float alpha = raw < kMaxAlpha ? raw : kMaxAlpha;
+          const float t = s.T[p];
+          const float next = t * (1.0f - alpha);
+          if (next < kMinTransmittance) {
+            s.done[p] = 1;
+            ++s.ndone;
+            continue;
+          }
+          const int j = p * kChunk + s.count[p]++;
+          s.gauss[j] = uint8_t(k);
+          s.weight[j] = alpha * t;
+          s.raw[j] = raw;
+          s.trans[j] = t;
+          s.T[p] = next;
+          if (gaussian_lists) {
+            const int q = k * kPixels + s.gcount[k]++;
+            s.gpix[q] = uint8_t(p);
+            s.gweight[q] = alpha * t;
+          }
         }
       }
     }
   }
-}
-
-int pixel_index(const TileScratch& s, int x, int y) {
-  return (y - s.y0) * kTileSize + x - s.x0;
 }
 
 }  // namespace
@@ -168,10 +253,8 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
   out.alpha = torch::empty({height, width}, torch::kFloat32);
   out.depth = torch::empty({height, width}, torch::kFloat32);
   if (keep_final_T) out.final_T = torch::empty({height, width}, torch::kFloat32);
-  const Splat* splats = splats_for(projected).data();
-  const float* col = colors.data_ptr<float>();
+  const Ranked& ranked = rank_gaussians(projected, colors, bins, np);
   const float* bg = background.data_ptr<float>();
-  const float* depths = projected.depths.data_ptr<float>();
   float* img = out.image.data_ptr<float>();
   float* alpha = out.alpha.data_ptr<float>();
   float* depth = out.depth.data_ptr<float>();
@@ -185,27 +268,29 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
     for (int tile : bins.thread_tiles[list]) {
       s.start(bins, tile, width, height, np);
       float dsum[kPixels] = {};
-      for (int32_t b = bins.offsets[tile]; b < bins.offsets[tile + 1] && s.ndone < s.npix;
-           b += kChunk) {
-        const int32_t* ids = bins.ids.data() + b;
-        const int m = std::min<int32_t>(kChunk, bins.offsets[tile + 1] - b);
-        gather_chunk(s, ids, m, col, n, np, depths);
-        blend_chunk(s, splats, ids, m, false);
+      const int32_t end = bins.offsets[tile + 1];
+      for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
+        const int32_t* ranks = bins.ranks.data() + b;
+        const int m = std::min<int32_t>(kChunk, end - b);
+        if (b + kChunk < end)
+          prefetch_chunk(ranked, ranks + kChunk, std::min<int32_t>(kChunk, end - b - kChunk), np);
+        blend_chunk(s, ranked, ranks, m, np, false);
         for (int p = 0; p < kPixels; ++p) {
           const int c = s.count[p];
           if (c == 0) continue;
           pairs += c;
-          kernels::gather_axpy(s.acc.data() + size_t(p) * np, s.cols.data(), np,
-                               s.gauss + p * kChunk, s.weight + p * kChunk, c);
+          const int j0 = p * kChunk;
+          kernels::gather_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, s.gauss + j0,
+                               s.weight + j0, c);
           for (int j = 0; j < c; ++j)
-            dsum[p] += s.weight[p * kChunk + j] * s.zc[s.gauss[p * kChunk + j]];
+            dsum[p] += s.weight[j0 + j] * ranked.splats[ranks[s.gauss[j0 + j]]].depth;
         }
       }
       for (int y = s.y0; y < s.y1; ++y)
         for (int x = s.x0; x < s.x1; ++x) {
-          const int p = pixel_index(s, x, y);
+          const int p = s.pixel(x, y);
           const int64_t o = int64_t(y) * width + x;
-          const float* a = s.acc.data() + size_t(p) * np;
+          const float* a = s.pix_rows[p];
           float* dst = img + o * n;
           const float t = s.T[p];
           for (int64_t c = 0; c < n; ++c) dst[c] = a[c] + t * bg[c];
@@ -226,33 +311,23 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
   const int64_t count = colors.size(0), n = colors.size(1);
   const int np = kernels::padded_channels(n);
   const int lists = int(bins.thread_tiles.size());
-  // Buffers of list 0 are the outputs; the others are summed into them in
+  const int64_t visible = int64_t(bins.order.size());
+  const Ranked& ranked = rank_gaussians(projected, colors, bins, np);
+  // One gradient buffer set per tile list, in rank order; they are summed in
   // list order at the end, so results do not depend on OS scheduling.
-  thread_local std::vector<std::vector<float>> extra_colors, extra_geo, extra_bg;
-  extra_colors.resize(lists), extra_geo.resize(lists), extra_bg.resize(lists);
-  torch::Tensor d_colors = torch::zeros({count, n}, torch::kFloat32);
-  torch::Tensor d_geo = torch::zeros({count, kSlots}, torch::kFloat32);
-  torch::Tensor d_bg = torch::zeros({n}, torch::kFloat32);
+  thread_local std::vector<std::vector<float>> col_bufs, geo_bufs, bg_bufs;
+  col_bufs.resize(lists), geo_bufs.resize(lists), bg_bufs.resize(lists);
   std::vector<float*> col_buf(lists), geo_buf(lists), bg_buf(lists);
-  col_buf[0] = d_colors.data_ptr<float>(), geo_buf[0] = d_geo.data_ptr<float>();
-  bg_buf[0] = d_bg.data_ptr<float>();
-  for (int l = 1; l < lists; ++l) {
-    extra_colors[l].assign(size_t(count * n), 0.0f);
-    extra_geo[l].assign(size_t(count * kSlots), 0.0f);
-    extra_bg[l].assign(size_t(n), 0.0f);
-    col_buf[l] = extra_colors[l].data(), geo_buf[l] = extra_geo[l].data();
-    bg_buf[l] = extra_bg[l].data();
+  for (int l = 0; l < lists; ++l) {
+    col_bufs[l].resize(size_t(visible) * np);
+    geo_bufs[l].resize(size_t(visible) * kSlots);
+    bg_bufs[l].resize(size_t(n));
+    col_buf[l] = col_bufs[l].data(), geo_buf[l] = geo_bufs[l].data(), bg_buf[l] = bg_bufs[l].data();
   }
-  const Splat* splats = splats_for(projected).data();
-  const float* col = colors.data_ptr<float>();
   const float* bg = background.data_ptr<float>();
-  const float* depths = projected.depths.data_ptr<float>();
-  const torch::Tensor dimg_t = d_image.contiguous();
-  const float* dimg = dimg_t.data_ptr<float>();
-  const torch::Tensor dalpha_t = d_alpha.defined() ? d_alpha.contiguous() : torch::Tensor();
-  const torch::Tensor ddepth_t = d_depth.defined() ? d_depth.contiguous() : torch::Tensor();
-  const float* dalpha = dalpha_t.defined() ? dalpha_t.data_ptr<float>() : nullptr;
-  const float* ddepth = ddepth_t.defined() ? ddepth_t.data_ptr<float>() : nullptr;
+  const float* dimg = d_image.data_ptr<float>();
+  const float* dalpha = d_alpha.defined() ? d_alpha.data_ptr<float>() : nullptr;
+  const float* ddepth = d_depth.defined() ? d_depth.data_ptr<float>() : nullptr;
   const float* img = fwd.image.data_ptr<float>();
   const float* dep = fwd.depth.data_ptr<float>();
   const float* final_T = fwd.final_T.data_ptr<float>();
@@ -263,6 +338,9 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
     float* gcol = col_buf[list];
     float* ggeo = geo_buf[list];
     float* gbg = bg_buf[list];
+    std::fill(gcol, gcol + visible * np, 0.0f);
+    std::fill(ggeo, ggeo + visible * kSlots, 0.0f);
+    std::fill(gbg, gbg + n, 0.0f);
     for (int tile : bins.thread_tiles[list]) {
       s.start(bins, tile, width, height, np);
       // Per pixel: dL/dD, final T, dL/dT_final and the total sum_j g_j w_j,
@@ -271,7 +349,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
       double total[kPixels] = {}, prefix[kPixels] = {};
       for (int y = s.y0; y < s.y1; ++y)
         for (int x = s.x0; x < s.x1; ++x) {
-          const int p = pixel_index(s, x, y);
+          const int p = s.pixel(x, y);
           const int64_t o = int64_t(y) * width + x;
           const float* dc = dimg + o * n;
           std::copy(dc, dc + n, s.acc.data() + size_t(p) * np);
@@ -286,20 +364,19 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
           total[p] = tot;
           dtf[p] = float(dt);
         }
-      for (int32_t b = bins.offsets[tile]; b < bins.offsets[tile + 1] && s.ndone < s.npix;
-           b += kChunk) {
-        const int32_t* ids = bins.ids.data() + b;
-        const int m = std::min<int32_t>(kChunk, bins.offsets[tile + 1] - b);
-        gather_chunk(s, ids, m, col, n, np, depths);
-        blend_chunk(s, splats, ids, m, true);
+      const int32_t end = bins.offsets[tile + 1];
+      for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
+        const int32_t* ranks = bins.ranks.data() + b;
+        const int m = std::min<int32_t>(kChunk, end - b);
+        if (b + kChunk < end)
+          prefetch_chunk(ranked, ranks + kChunk, std::min<int32_t>(kChunk, end - b - kChunk), np);
+        blend_chunk(s, ranked, ranks, m, np, true);
         // dL/dcolors = W^T dL/dimage, Gaussian-major with register accumulators.
         for (int k = 0; k < m; ++k) {
           if (s.gcount[k] == 0) continue;
-          std::fill(s.tmp.begin(), s.tmp.end(), 0.0f);
-          kernels::gather_axpy(s.tmp.data(), s.acc.data(), np, s.gpix + k * kPixels,
-                               s.gweight + k * kPixels, s.gcount[k]);
-          float* dst = gcol + int64_t(ids[k]) * n;
-          for (int64_t c = 0; c < n; ++c) dst[c] += s.tmp[c];
+          float* dst = gcol + int64_t(ranks[k]) * np;
+          kernels::gather_axpy(dst, s.pix_rows, np, s.gpix + k * kPixels, s.gweight + k * kPixels,
+                               s.gcount[k]);
         }
         float geo[kChunk][kSlots] = {};
         for (int p = 0; p < kPixels; ++p) {
@@ -307,21 +384,20 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
           if (c == 0) continue;
           float gdot[kChunk] = {};
           const int j0 = p * kChunk;
-          kernels::gather_dot(s.acc.data() + size_t(p) * np, s.cols.data(), np, s.gauss + j0, c,
-                              gdot);
+          kernels::gather_dot(s.pix_rows[p], s.col_rows, np, s.gauss + j0, c, gdot);
           const float px = float(s.x0 + p % kTileSize) + 0.5f;
           const float py = float(s.y0 + p / kTileSize) + 0.5f;
           for (int j = 0; j < c; ++j) {
             const int k = s.gauss[j0 + j];
+            const Splat& sp = ranked.splats[ranks[k]];
             const float w = s.weight[j0 + j], raw = s.raw[j0 + j], t = s.trans[j0 + j];
-            const float g = gdot[j] + s.zc[k] * dd[p];
+            const float g = gdot[j] + sp.depth * dd[p];
             geo[k][kDepth] += w * dd[p];
             prefix[p] += double(g) * w;
             const float suffix = float(total[p] - prefix[p]);
-            const float alpha = std::fmin(kMaxAlpha, raw);
+            const float alpha = raw < kMaxAlpha ? raw : kMaxAlpha;
             const float d_alpha_j = t * g - (suffix + dtf[p] * tf[p]) / (1.0f - alpha);
             if (raw > kMaxAlpha) continue;  // clamped: no gradient to o or power
-            const Splat& sp = splats[ids[k]];
             const float dx = sp.mx - px, dy = sp.my - py;
             const float d_power = -d_alpha_j * raw;
             geo[k][kOpacity] += d_alpha_j * raw / sp.opacity;
@@ -333,20 +409,32 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
           }
         }
         for (int k = 0; k < m; ++k)
-          for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ids[k]) * kSlots + q] += geo[k][q];
+          for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ranks[k]) * kSlots + q] += geo[k][q];
       }
     }
   }
 
-  for (int l = 1; l < lists; ++l) {
-    float* dst = col_buf[0];
-    const float* src = col_buf[l];
-    at::parallel_for(0, count * n, 1 << 16, [&](int64_t b, int64_t e) {
-      for (int64_t i = b; i < e; ++i) dst[i] += src[i];
-    });
-    for (int64_t i = 0; i < count * kSlots; ++i) geo_buf[0][i] += geo_buf[l][i];
-    for (int64_t c = 0; c < n; ++c) bg_buf[0][c] += bg_buf[l][c];
-  }
+  // Sum the lists in a fixed order and scatter ranks back to Gaussian order.
+  torch::Tensor d_colors = torch::zeros({count, n}, torch::kFloat32);
+  torch::Tensor d_geo = torch::zeros({count, kSlots}, torch::kFloat32);
+  torch::Tensor d_bg = torch::zeros({n}, torch::kFloat32);
+  float* dcol = d_colors.data_ptr<float>();
+  float* dgeo = d_geo.data_ptr<float>();
+  const int32_t* order = bins.order.data();
+  at::parallel_for(0, visible, 1024, [&](int64_t begin, int64_t end) {
+    for (int64_t r = begin; r < end; ++r) {
+      float* dc = dcol + int64_t(order[r]) * n;
+      float* dg = dgeo + int64_t(order[r]) * kSlots;
+      for (int l = 0; l < lists; ++l) {
+        const float* src = col_buf[l] + r * np;
+        for (int64_t c = 0; c < n; ++c) dc[c] += src[c];
+        for (int q = 0; q < kSlots; ++q) dg[q] += geo_buf[l][r * kSlots + q];
+      }
+    }
+  });
+  float* dbg = d_bg.data_ptr<float>();
+  for (int l = 0; l < lists; ++l)
+    for (int64_t c = 0; c < n; ++c) dbg[c] += bg_buf[l][c];
   using torch::indexing::Slice;
   return {d_geo.index({Slice(), Slice(kMx, kMy + 1)}).contiguous(),
           d_geo.index({Slice(), Slice(kConA, kConC + 1)}).contiguous(),

@@ -20,12 +20,12 @@ inline int padded_channels(int64_t n) {
 #if defined(__AVX2__) && defined(__FMA__)
 
 template <int V>
-inline void gather_axpy_block(float* acc, const float* rows, int stride, const uint8_t* idx,
+inline void gather_axpy_block(float* acc, const float* const* rows, int c, const uint8_t* idx,
                               const float* w, int count) {
   __m256 a[V];
   for (int v = 0; v < V; ++v) a[v] = _mm256_loadu_ps(acc + kLanes * v);
   for (int j = 0; j < count; ++j) {
-    const float* r = rows + int64_t(idx[j]) * stride;
+    const float* r = rows[idx[j]] + c;
     const __m256 wj = _mm256_set1_ps(w[j]);
     for (int v = 0; v < V; ++v) a[v] = _mm256_fmadd_ps(wj, _mm256_loadu_ps(r + kLanes * v), a[v]);
   }
@@ -33,12 +33,12 @@ inline void gather_axpy_block(float* acc, const float* rows, int stride, const u
 }
 
 template <int V>
-inline void gather_dot_block(const float* x, const float* rows, int stride, const uint8_t* idx,
+inline void gather_dot_block(const float* x, const float* const* rows, int c, const uint8_t* idx,
                              int count, float* out) {
   __m256 xv[V];
   for (int v = 0; v < V; ++v) xv[v] = _mm256_loadu_ps(x + kLanes * v);
   for (int j = 0; j < count; ++j) {
-    const float* r = rows + int64_t(idx[j]) * stride;
+    const float* r = rows[idx[j]] + c;
     __m256 s = _mm256_mul_ps(xv[0], _mm256_loadu_ps(r));
     for (int v = 1; v < V; ++v) s = _mm256_fmadd_ps(xv[v], _mm256_loadu_ps(r + kLanes * v), s);
     const __m128 h = _mm_add_ps(_mm256_castps256_ps128(s), _mm256_extractf128_ps(s, 1));
@@ -82,46 +82,46 @@ inline void over_blocks(int n, Args... args) {
 
 template <int V>
 struct AxpyOp {
-  static void run(int c, float* acc, const float* rows, int stride, const uint8_t* idx,
-                  const float* w, int count) {
-    gather_axpy_block<V>(acc + c, rows + c, stride, idx, w, count);
+  static void run(int c, float* acc, const float* const* rows, const uint8_t* idx, const float* w,
+                  int count) {
+    gather_axpy_block<V>(acc + c, rows, c, idx, w, count);
   }
 };
 
 template <int V>
 struct DotOp {
-  static void run(int c, const float* x, const float* rows, int stride, const uint8_t* idx,
-                  int count, float* out) {
-    gather_dot_block<V>(x + c, rows + c, stride, idx, count, out);
+  static void run(int c, const float* x, const float* const* rows, const uint8_t* idx, int count,
+                  float* out) {
+    gather_dot_block<V>(x + c, rows, c, idx, count, out);
   }
 };
 
 // acc[0, n) += sum_j w[j] * rows[idx[j]][0, n); n is a multiple of kLanes.
-inline void gather_axpy(float* acc, const float* rows, int n, const uint8_t* idx, const float* w,
-                        int count) {
-  over_blocks<AxpyOp>(n, acc, rows, n, idx, w, count);
+inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8_t* idx,
+                        const float* w, int count) {
+  over_blocks<AxpyOp>(n, acc, rows, idx, w, count);
 }
 
 // out[j] += dot(x[0, n), rows[idx[j]][0, n)) for each j; n a multiple of kLanes.
-inline void gather_dot(const float* x, const float* rows, int n, const uint8_t* idx, int count,
-                       float* out) {
-  over_blocks<DotOp>(n, x, rows, n, idx, count, out);
+inline void gather_dot(const float* x, const float* const* rows, int n, const uint8_t* idx,
+                       int count, float* out) {
+  over_blocks<DotOp>(n, x, rows, idx, count, out);
 }
 
 #else  // portable fallback: the compiler vectorises the inner loops it can
 
-inline void gather_axpy(float* acc, const float* rows, int n, const uint8_t* idx, const float* w,
-                        int count) {
+inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8_t* idx,
+                        const float* w, int count) {
   for (int j = 0; j < count; ++j) {
-    const float* r = rows + int64_t(idx[j]) * n;
+    const float* r = rows[idx[j]];
     for (int c = 0; c < n; ++c) acc[c] += w[j] * r[c];
   }
 }
 
-inline void gather_dot(const float* x, const float* rows, int n, const uint8_t* idx, int count,
-                       float* out) {
+inline void gather_dot(const float* x, const float* const* rows, int n, const uint8_t* idx,
+                       int count, float* out) {
   for (int j = 0; j < count; ++j) {
-    const float* r = rows + int64_t(idx[j]) * n;
+    const float* r = rows[idx[j]];
     float s = 0;
     for (int c = 0; c < n; ++c) s += x[c] * r[c];
     out[j] += s;

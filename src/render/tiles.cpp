@@ -4,6 +4,8 @@
 #include <cstring>
 #include <numeric>
 
+#include "core/error.h"
+
 namespace ddhgs::render {
 namespace {
 
@@ -83,23 +85,30 @@ void bin_gaussians(const float* means2d, const float* depths, const int32_t* rad
   }
   radix_sort(scratch);
 
+  bins.order.assign(scratch.order.begin(), scratch.order.end());
+
   const int n_tiles = bins.num_tiles();
-  bins.offsets.assign(n_tiles + 1, 0);
+  const int32_t visible = int32_t(bins.order.size());
+  std::vector<int64_t> counts(n_tiles + 1, 0);
   auto rect_of = [&](int32_t g) {
     return tile_rect(means2d[2 * g], means2d[2 * g + 1], radii[g], bins.tiles_x, bins.tiles_y);
   };
-  for (int32_t g : scratch.order) {
-    const TileRect r = rect_of(g);
-    for (int ty = r.y0; ty < r.y1; ++ty)
-      for (int tx = r.x0; tx < r.x1; ++tx) ++bins.offsets[ty * bins.tiles_x + tx + 1];
+  for (int32_t r = 0; r < visible; ++r) {
+    const TileRect t = rect_of(bins.order[r]);
+    for (int ty = t.y0; ty < t.y1; ++ty)
+      for (int tx = t.x0; tx < t.x1; ++tx) ++counts[ty * bins.tiles_x + tx + 1];
   }
-  std::partial_sum(bins.offsets.begin(), bins.offsets.end(), bins.offsets.begin());
-  bins.ids.resize(bins.offsets[n_tiles]);
+  std::partial_sum(counts.begin(), counts.end(), counts.begin());
+  core::require(counts[n_tiles] < (int64_t(1) << 31),
+                "rasterize: more than 2^31 Gaussian-tile pairs; reduce the number or size of "
+                "the Gaussians");
+  bins.offsets.assign(counts.begin(), counts.end());
+  bins.ranks.resize(bins.offsets[n_tiles]);
   std::vector<int32_t> cursor(bins.offsets.begin(), bins.offsets.end() - 1);
-  for (int32_t g : scratch.order) {
-    const TileRect r = rect_of(g);
-    for (int ty = r.y0; ty < r.y1; ++ty)
-      for (int tx = r.x0; tx < r.x1; ++tx) bins.ids[cursor[ty * bins.tiles_x + tx]++] = g;
+  for (int32_t r = 0; r < visible; ++r) {
+    const TileRect t = rect_of(bins.order[r]);
+    for (int ty = t.y0; ty < t.y1; ++ty)
+      for (int tx = t.x0; tx < t.x1; ++tx) bins.ranks[cursor[ty * bins.tiles_x + tx]++] = r;
   }
   assign_tiles(std::max(1, threads), bins);
 }

@@ -33,12 +33,15 @@ inline int tiles_along(int pixels) {
   return (pixels + kTileSize - 1) / kTileSize;
 }
 
-// Per-tile lists of Gaussian indices sorted by depth (ties by index), plus a
-// balanced, deterministic assignment of tiles to threads.
+// Visible Gaussians ranked by depth (ties by index), per-tile lists of those
+// ranks, and a balanced, deterministic assignment of tiles to threads. Tile
+// lists hold ranks rather than Gaussian indices so that per-rank data laid
+// out in depth order is walked forwards through memory by every tile.
 struct TileBins {
   int tiles_x = 0, tiles_y = 0;
-  std::vector<int32_t> offsets;                    // [tiles + 1] into ids
-  std::vector<int32_t> ids;                        // Gaussian indices, tile-major
+  std::vector<int32_t> order;    // [visible] Gaussian index of each depth rank
+  std::vector<int32_t> offsets;  // [tiles + 1] into ranks
+  std::vector<int32_t> ranks;    // depth ranks, tile-major, increasing within a tile
   std::vector<std::vector<int32_t>> thread_tiles;  // [threads][...] tile indices
 
   int num_tiles() const { return tiles_x * tiles_y; }

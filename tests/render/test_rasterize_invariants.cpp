@@ -113,6 +113,20 @@ TEST(Rasterize, ThreadCountChangesOnlySummationOrder) {
   for (size_t i = 1; i < one.size(); ++i) EXPECT_LT(scaled_error(three[i], one[i]), 1e-5) << i;
 }
 
+TEST(Rasterize, LargeSceneSameOnOneAndTwoThreads) {
+  // Enough Gaussians that LibTorch's parallel loops really split the work.
+  SplatScene s = random_scene(13, 6000, 4, 64, 48);
+  s.log_scales = s.log_scales - 1.5;
+  const int before = core::thread_count();
+  core::configure_threads(1);
+  const std::vector<Tensor> one = image_and_grads(s);
+  core::configure_threads(2);
+  const std::vector<Tensor> two = image_and_grads(s);
+  core::configure_threads(before);
+  EXPECT_TRUE(torch::equal(one[0], two[0]));
+  for (size_t i = 1; i < one.size(); ++i) EXPECT_LT(scaled_error(two[i], one[i]), 1e-5) << i;
+}
+
 TEST(Rasterize, NoGradRenderMatchesAndKeepsNoGraph) {
   const SplatScene s = random_scene(9, 40, 6, 37, 29).leaves(torch::kFloat32);
   const RenderOutput with_graph = render_scene(s);

@@ -1,0 +1,152 @@
+// Rasterizer throughput on fixed, seeded random scenes, compared with this
+// machine's single-precision matrix-multiply peak measured in the same run.
+//
+//   build/bench/bench_rasterizer [--quick | --only WIDTH HEIGHT G N]
+//
+// Per scene: forward and backward milliseconds (median of several runs, with
+// autograd, as training uses them), Gaussian-pixel pairs blended per second,
+// blend GFLOP/s and its fraction of the torch::mm peak, and peak RSS.
+// Flop counts: forward 2 per band per blended pair (one multiply-add into the
+// pixel), backward 4 per band per pair (dL/dweight = colour . dL/dpixel and
+// dL/dcolour += weight * dL/dpixel). Scalar work (exp, transmittance) is
+// not counted.
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/threads.h"
+#include "render/blend.h"
+#include "render/project.h"
+#include "render/rasterize.h"
+#include "render/tiles.h"
+
+namespace {
+
+using namespace ddhgs;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double peak_rss_mib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // Linux reports KiB
+}
+
+// GFLOP/s of a large square float32 torch::mm on all threads.
+double mm_peak_gflops() {
+  const int64_t n = 2048;
+  torch::manual_seed(0);
+  const torch::Tensor a = torch::randn({n, n}), b = torch::randn({n, n});
+  torch::Tensor c = torch::mm(a, b);  // warm-up
+  std::vector<double> rates;
+  for (int rep = 0; rep < 5; ++rep) {
+    const auto t = Clock::now();
+    c = torch::mm(a, b);
+    rates.push_back(2.0 * n * n * n / seconds_since(t) / 1e9);
+  }
+  return *std::max_element(rates.begin(), rates.end());
+}
+
+struct Scene {
+  torch::Tensor means, log_scales, quats, logit_opacities, colors, background;
+  render::RenderCamera camera;
+};
+
+// Gaussians uniform in a 2 x 2 x 2 box seen from 4 units away, 0.5-3 % of
+// the box wide: a few pixels each at 640 px, like a trained 3DGS scene.
+Scene make_scene(int64_t g, int64_t n, int width, int height) {
+  torch::manual_seed(1234 + g + n + width);
+  Scene s;
+  s.means = torch::rand({g, 3}) * 2 - 1;
+  s.log_scales = torch::rand({g, 3}) * std::log(6.0) + std::log(0.005);
+  s.quats = torch::randn({g, 4});
+  s.logit_opacities = torch::randn({g, 1});
+  s.colors = torch::rand({g, n});
+  s.background = torch::zeros({n});
+  core::Camera cam;
+  cam.intrinsics = {double(width), double(width), width / 2.0, height / 2.0, width, height};
+  cam.world_to_camera = core::look_at({0.5, -0.3, -4.0}, {0, 0, 0}, {0, -1, 0});
+  s.camera = render::RenderCamera::from(cam);
+  return s;
+}
+
+// Blended pairs of one render, through the internal stages (untimed).
+int64_t count_pairs(const Scene& s) {
+  const render::Projected p =
+      render::project_forward(s.means, s.log_scales, s.quats, s.logit_opacities, s.camera);
+  render::TileBins bins;
+  render::bin_gaussians(p.means2d.data_ptr<float>(), p.depths.data_ptr<float>(),
+                        p.radii.data_ptr<int32_t>(), p.means2d.size(0), s.camera.width,
+                        s.camera.height, core::thread_count(), bins);
+  return render::blend_forward(p, s.colors, s.background, bins, s.camera.width, s.camera.height,
+                               false)
+      .pairs;
+}
+
+void run_scene(int width, int height, int64_t g, int64_t n, int reps, double peak) {
+  const Scene s = make_scene(g, n, width, height);
+  std::vector<torch::Tensor> leaves = {s.means, s.log_scales, s.quats, s.logit_opacities, s.colors};
+  for (auto& t : leaves) t.set_requires_grad(true);
+  torch::manual_seed(7);
+  const torch::Tensor d_image = torch::randn({height, width, n});
+  std::vector<double> fwd, bwd;
+  for (int rep = 0; rep <= reps; ++rep) {  // rep 0 warms caches and buffers
+    for (auto& t : leaves) t.mutable_grad() = torch::Tensor();
+    auto t0 = Clock::now();
+    const render::RenderOutput out =
+        render::rasterize(s.means, s.log_scales, s.quats, s.logit_opacities, s.colors, s.camera,
+                          s.background, torch::zeros({g, 2}, torch::requires_grad()));
+    const double f = seconds_since(t0);
+    t0 = Clock::now();
+    out.image.backward(d_image);
+    const double b = seconds_since(t0);
+    if (rep > 0) fwd.push_back(f), bwd.push_back(b);
+  }
+  const double f = median(fwd), b = median(bwd);
+  const double pairs = double(count_pairs(s));
+  const double gf_fwd = 2.0 * n * pairs / f / 1e9;
+  const double gf_all = 6.0 * n * pairs / (f + b) / 1e9;
+  std::printf(
+      "| %dx%d | %lldk | %lld | %.1f | %.1f | %.1f | %.0f | %.1f | %.0f %% | %.1f | %.0f %% | %.0f "
+      "|\n",
+      width, height, (long long)(g / 1000), (long long)n, f * 1e3, b * 1e3, pairs / 1e6,
+      pairs / f / 1e6, gf_fwd, 100 * gf_fwd / peak, gf_all, 100 * gf_all / peak, peak_rss_mib());
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const bool quick = argc > 1 && std::strcmp(argv[1], "--quick") == 0;
+  const int threads = core::configure_threads();
+  const double peak = mm_peak_gflops();
+  std::printf("threads %d, torch::mm fp32 peak %.1f GFLOP/s\n\n", threads, peak);
+  std::printf(
+      "| image | G | N | fwd ms | bwd ms | pairs (M) | pairs/s (M) | fwd GFLOP/s | fwd %% peak | "
+      "fwd+bwd GFLOP/s | fwd+bwd %% peak | peak RSS MiB |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  const int reps = quick ? 1 : 5;
+  if (argc == 6 && std::strcmp(argv[1], "--only") == 0) {  // one scene, e.g. for a profiler
+    run_scene(std::atoi(argv[2]), std::atoi(argv[3]), std::atoll(argv[4]), std::atoll(argv[5]), 3,
+              peak);
+    return 0;
+  }
+  for (auto [w, h] : {std::pair{256, 256}, std::pair{640, 512}})
+    for (int64_t g : {10000, 100000})
+      for (int64_t n : {3, 32, 128, 141}) run_scene(w, h, g, n, reps, peak);
+  return 0;
+}
