@@ -63,7 +63,7 @@ double lamp_power(double nm, double temperature_k) {
   double peak_nm = 2.897771955e6 / temperature_k;  // Wien's displacement law
   double halogen =
       core::planck_radiance(nm, temperature_k) / core::planck_radiance(peak_nm, temperature_k);
-  return 0.85 * halogen + 0.15;
+  return 0.65 * halogen + 0.35;
 }
 
 double sensor_response(double nm) {

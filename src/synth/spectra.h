@@ -20,7 +20,7 @@ double soil_reflectance(double wavelength_nm, double moisture);        // moistu
 double mat_reflectance(double wavelength_nm, double tone);  // ground disc; tone in [0, 1]
 double background_reflectance(double wavelength_nm);        // neutral grey backdrop
 
-// Relative lamp power, max ~1: a halogen black body plus a little daylight fill,
+// Relative lamp power, max ~1: a halogen black body plus some daylight fill,
 // so the blue end is dim but not empty.
 double lamp_power(double wavelength_nm, double temperature_k = 3200.0);
 // Sensor quantum efficiency: a bump peaking at 680 nm that falls to ~15 % at
@@ -29,7 +29,7 @@ double sensor_response(double wavelength_nm);
 
 struct NoiseModel {
   double shot = 1.5e-4;     // shot-noise variance per unit signal at full response
-  double read = 3e-3;       // read-noise std at full response
+  double read = 1e-3;       // read-noise std at full response
   double scale = 1.0;       // multiplies the std (--noise-scale)
   double edge_power = 1.0;  // noise grows as response^-edge_power (2: noisy edges)
 };
