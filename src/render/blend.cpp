@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 #if defined(__AVX2__) && defined(__FMA__)
@@ -92,7 +93,7 @@ struct TileScratch {
   const float* col_rows[kChunk];   // colour row of each chunk Gaussian
   const float* pix_rows[kPixels];  // row of acc for each pixel
   std::vector<float> acc;          // [kPixels, np] colour sums (forward) or dL/dimage (backward)
-  std::vector<float> tmp;          // [np]
+  uint8_t touched[kPixels];        // forward: acc row holds a sum (rows are not zeroed up front)
 
   void start(const TileBins& bins, int tile, int width, int height, int np) {
     x0 = (tile % bins.tiles_x) * kTileSize, y0 = (tile / bins.tiles_x) * kTileSize;
@@ -101,8 +102,8 @@ struct TileScratch {
     ndone = 0;
     std::fill(T, T + kPixels, 1.0f);
     std::fill(done, done + kPixels + kRowLanes, uint8_t(0));
-    acc.assign(size_t(kPixels) * np, 0.0f);
-    tmp.resize(np);
+    acc.resize(size_t(kPixels) * np);
+    std::fill(touched, touched + kPixels, uint8_t(0));
     for (int p = 0; p < kPixels; ++p) pix_rows[p] = acc.data() + size_t(p) * np;
   }
   int pixel(int x, int y) const { return (y - y0) * kTileSize + x - x0; }
@@ -121,8 +122,11 @@ void prefetch_chunk(const Ranked& ranked, const int32_t* ranks, int m, int np) {
 }
 
 TileScratch& scratch() {
-  thread_local TileScratch s;
-  return s;
+  // On the heap: a ~300 KB thread_local object would be reserved in the
+  // static TLS of every thread of the process, not just the render workers.
+  thread_local std::unique_ptr<TileScratch> s;
+  if (!s) s = std::make_unique<TileScratch>();
+  return *s;
 }
 
 #if defined(__AVX2__) && defined(__FMA__)
@@ -281,7 +285,8 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
           pairs += c;
           const int j0 = p * kChunk;
           kernels::gather_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, s.gauss + j0,
-                               s.weight + j0, c);
+                               s.weight + j0, c, s.touched[p]);
+          s.touched[p] = 1;
           for (int j = 0; j < c; ++j)
             dsum[p] += s.weight[j0 + j] * ranked.splats[ranks[s.gauss[j0 + j]]].depth;
         }
@@ -290,10 +295,14 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
         for (int x = s.x0; x < s.x1; ++x) {
           const int p = s.pixel(x, y);
           const int64_t o = int64_t(y) * width + x;
-          const float* a = s.pix_rows[p];
           float* dst = img + o * n;
           const float t = s.T[p];
-          for (int64_t c = 0; c < n; ++c) dst[c] = a[c] + t * bg[c];
+          if (s.touched[p]) {
+            const float* a = s.pix_rows[p];
+            for (int64_t c = 0; c < n; ++c) dst[c] = a[c] + t * bg[c];
+          } else {
+            for (int64_t c = 0; c < n; ++c) dst[c] = t * bg[c];
+          }
           alpha[o] = 1.0f - t;
           depth[o] = dsum[p];
           if (final_T) final_T[o] = t;
@@ -352,7 +361,9 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
           const int p = s.pixel(x, y);
           const int64_t o = int64_t(y) * width + x;
           const float* dc = dimg + o * n;
-          std::copy(dc, dc + n, s.acc.data() + size_t(p) * np);
+          float* row = s.acc.data() + size_t(p) * np;
+          std::copy(dc, dc + n, row);
+          std::fill(row + n, row + np, 0.0f);  // padding meets zero colour padding
           tf[p] = final_T[o];
           dd[p] = ddepth ? ddepth[o] : 0.0f;
           double tot = double(dd[p]) * dep[o], dt = dalpha ? -double(dalpha[o]) : 0.0;

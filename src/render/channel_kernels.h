@@ -3,6 +3,7 @@
 // block stay in registers across a whole list of (row, weight) pairs, so each
 // FMA costs one load instead of a load, a load and a store.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 
 #if defined(__AVX2__) && defined(__FMA__)
@@ -21,9 +22,10 @@ inline int padded_channels(int64_t n) {
 
 template <int V>
 inline void gather_axpy_block(float* acc, const float* const* rows, int c, const uint8_t* idx,
-                              const float* w, int count) {
+                              const float* w, int count, bool accumulate) {
   __m256 a[V];
-  for (int v = 0; v < V; ++v) a[v] = _mm256_loadu_ps(acc + kLanes * v);
+  for (int v = 0; v < V; ++v)
+    a[v] = accumulate ? _mm256_loadu_ps(acc + kLanes * v) : _mm256_setzero_ps();
   for (int j = 0; j < count; ++j) {
     const float* r = rows[idx[j]] + c;
     const __m256 wj = _mm256_set1_ps(w[j]);
@@ -83,8 +85,8 @@ inline void over_blocks(int n, Args... args) {
 template <int V>
 struct AxpyOp {
   static void run(int c, float* acc, const float* const* rows, const uint8_t* idx, const float* w,
-                  int count) {
-    gather_axpy_block<V>(acc + c, rows, c, idx, w, count);
+                  int count, bool accumulate) {
+    gather_axpy_block<V>(acc + c, rows, c, idx, w, count, accumulate);
   }
 };
 
@@ -96,10 +98,11 @@ struct DotOp {
   }
 };
 
-// acc[0, n) += sum_j w[j] * rows[idx[j]][0, n); n is a multiple of kLanes.
+// acc[0, n) (+)= sum_j w[j] * rows[idx[j]][0, n); n is a multiple of kLanes.
+// accumulate = false overwrites acc, which saves zeroing it beforehand.
 inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8_t* idx,
-                        const float* w, int count) {
-  over_blocks<AxpyOp>(n, acc, rows, idx, w, count);
+                        const float* w, int count, bool accumulate = true) {
+  over_blocks<AxpyOp>(n, acc, rows, idx, w, count, accumulate);
 }
 
 // out[j] += dot(x[0, n), rows[idx[j]][0, n)) for each j; n a multiple of kLanes.
@@ -111,7 +114,8 @@ inline void gather_dot(const float* x, const float* const* rows, int n, const ui
 #else  // portable fallback: the compiler vectorises the inner loops it can
 
 inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8_t* idx,
-                        const float* w, int count) {
+                        const float* w, int count, bool accumulate = true) {
+  if (!accumulate) std::fill(acc, acc + n, 0.0f);
   for (int j = 0; j < count; ++j) {
     const float* r = rows[idx[j]];
     for (int c = 0; c < n; ++c) acc[c] += w[j] * r[c];
