@@ -1,6 +1,8 @@
 // Cube format dispatch and the conversions shared by every cube reader.
 #include "io/cube.h"
 
+#include <ATen/Parallel.h>
+
 #include <cctype>
 
 #include "core/error.h"
@@ -69,13 +71,68 @@ bool bands_first(int64_t d0, int64_t d1, int64_t d2, BandLayout layout) {
   return clearly_smallest(d0, d1, d2) && !clearly_smallest(d2, d0, d1);
 }
 
+namespace {
+
+template <typename T>
+void transpose_columns(const T* src, T* dst, int64_t rows, int64_t cols, int64_t c_begin,
+                       int64_t c_end) {
+  // 32 x 32 blocks keep both the read and the write side in cache.
+  constexpr int64_t kBlock = 32;
+  for (int64_t c0 = c_begin; c0 < c_end; c0 += kBlock)
+    for (int64_t r0 = 0; r0 < rows; r0 += kBlock) {
+      int64_t c1 = std::min(c0 + kBlock, c_end), r1 = std::min(r0 + kBlock, rows);
+      for (int64_t c = c0; c < c1; ++c)
+        for (int64_t r = r0; r < r1; ++r) dst[c * rows + r] = src[r * cols + c];
+    }
+}
+
+template <typename T>
+void transpose_batch(const torch::Tensor& in, torch::Tensor& out) {
+  int64_t n = in.size(0), rows = in.size(1), cols = in.size(2);
+  const T* src = static_cast<const T*>(in.data_ptr());
+  T* dst = static_cast<T*>(out.data_ptr());
+  int64_t blocks = (cols + 31) / 32;
+  at::parallel_for(0, n * blocks, 1, [&](int64_t begin, int64_t end) {
+    for (int64_t task = begin; task < end; ++task) {
+      int64_t i = task / blocks, c0 = (task % blocks) * 32;
+      transpose_columns(src + i * rows * cols, dst + i * rows * cols, rows, cols, c0,
+                        std::min(c0 + 32, cols));
+    }
+  });
+}
+
+}  // namespace
+
+torch::Tensor transpose_last_two(const torch::Tensor& data) {
+  torch::Tensor in = data.contiguous();
+  torch::Tensor out = torch::empty({in.size(0), in.size(2), in.size(1)}, in.options());
+  switch (in.element_size()) {
+    case 1:
+      transpose_batch<uint8_t>(in, out);
+      break;
+    case 2:
+      transpose_batch<uint16_t>(in, out);
+      break;
+    case 4:
+      transpose_batch<uint32_t>(in, out);
+      break;
+    case 8:
+      transpose_batch<uint64_t>(in, out);
+      break;
+    default:
+      out.copy_(in.transpose(1, 2));
+  }
+  return out;
+}
+
 torch::Tensor to_bands_last(const torch::Tensor& data, BandLayout layout, const fs::path& path) {
   if (data.dim() == 2) return data.unsqueeze(2).contiguous();
   if (data.dim() != 3)
     throw core::Error(path, "array has " + std::to_string(data.dim()) +
                                 " dimensions, expected 2 (H x W) or 3 (H x W x B or B x H x W)");
   if (bands_first(data.size(0), data.size(1), data.size(2), layout))
-    return data.permute({1, 2, 0}).contiguous();
+    return transpose_last_two(data.reshape({1, data.size(0), -1}))
+        .view({data.size(1), data.size(2), data.size(0)});
   return data.contiguous();
 }
 
@@ -206,13 +263,19 @@ torch::Tensor cube_to_float(const Cube& cube, double scale) {
   bool wide = cube.type == SampleType::I32 || cube.type == SampleType::F64;
   torch::Tensor values;
   if (cube.type == SampleType::U16) {
-    values = raw.to(torch::kInt32).bitwise_and(0xFFFF).to(torch::kFloat);
+    values = raw.to(torch::kInt32).bitwise_and_(0xFFFF).to(torch::kFloat);
   } else {
     values = raw.to(wide ? torch::kDouble : torch::kFloat);
   }
   torch::Tensor ignored;
   if (cube.ignore_value) ignored = values == *cube.ignore_value;
-  values = (values / scale).to(torch::kFloat);
+  // In place only on a fresh copy: a float32 cube converts to itself.
+  if (values.data_ptr() == raw.data_ptr()) {
+    values = values / scale;
+  } else {
+    values.div_(scale);
+  }
+  values = values.to(torch::kFloat);
   if (ignored.defined()) values.masked_fill_(ignored, 0.0);
   return values.contiguous();
 }

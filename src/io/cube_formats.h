@@ -28,6 +28,11 @@ bool bands_first(int64_t d0, int64_t d1, int64_t d2, BandLayout layout);
 torch::Tensor to_bands_last(const torch::Tensor& data, BandLayout layout,
                             const std::filesystem::path& path);
 
+// [N, R, C] contiguous -> [N, C, R] contiguous: a cache-blocked transpose,
+// several times faster than LibTorch's strided copy for 1- and 2-byte samples
+// (band-sequential files are this transpose per view).
+torch::Tensor transpose_last_two(const torch::Tensor& data);
+
 // The tensor dtype that holds samples of this type (U16 lives in int16).
 torch::ScalarType tensor_dtype(SampleType type);
 // Inverse of tensor_dtype for uint8/int16/int32/half/float/double tensors.

@@ -274,11 +274,13 @@ Cube read_envi(const fs::path& path) {
   in.read(static_cast<char*>(data.data_ptr()), std::streamsize(bytes));
   if (!in || uint64_t(in.gcount()) != bytes) throw core::Error(h.data, "read failed");
   if (h.big_endian) swap_bytes(data);
-  if (h.interleave == EnviInterleave::BSQ) data = data.permute({1, 2, 0});
-  if (h.interleave == EnviInterleave::BIL) data = data.permute({0, 2, 1});
+  // Both are per-view transposes: BSQ [B, H*W] -> [H*W, B], BIL [B, W] per line.
+  if (h.interleave == EnviInterleave::BSQ)
+    data = transpose_last_two(data.view({1, h.bands, -1})).view({h.lines, h.samples, h.bands});
+  if (h.interleave == EnviInterleave::BIL) data = transpose_last_two(data);
   Cube cube;
   cube.type = h.type;
-  cube.data = data.contiguous();
+  cube.data = data;
   cube.wavelengths_nm = h.wavelengths_nm;
   cube.ignore_value = h.ignore_value;
   require_finite(cube.data, h.data);

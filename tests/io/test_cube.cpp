@@ -38,6 +38,20 @@ TEST(Cube, AutoLayoutPicksTheBandAxisOnlyWhenClear) {
   EXPECT_FALSE(bands_first(141, 512, 640, BandLayout::BandsLast));
 }
 
+// The blocked transpose against LibTorch's strided copy, on shapes that are
+// not multiples of its 32-element blocks, for every sample width.
+TEST(Cube, BlockedTransposeMatchesLibTorch) {
+  torch::manual_seed(11);
+  for (auto dtype : {torch::kUInt8, torch::kInt16, torch::kFloat, torch::kDouble})
+    for (std::vector<int64_t> shape :
+         {std::vector<int64_t>{1, 141, 70}, {3, 33, 65}, {2, 1, 5}, {1, 64, 32}}) {
+      torch::Tensor in = torch::randint(0, 120, shape).to(dtype);
+      torch::Tensor fast = detail::transpose_last_two(in);
+      EXPECT_TRUE(fast.is_contiguous());
+      EXPECT_TRUE(torch::equal(fast, in.transpose(1, 2))) << dtype << " " << shape[1];
+    }
+}
+
 TEST(Cube, IntegerCubesScaleByTheirTypeMaximum) {
   torch::Tensor u8 = torch::tensor({0, 51, 255}, torch::kUInt8).view({1, 3, 1});
   torch::Tensor f = cube_to_float(make_cube(u8, SampleType::U8));
