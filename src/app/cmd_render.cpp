@@ -1,0 +1,88 @@
+// `ddhgs render RUN`: a trained run's views, or an orbit around the scene, as
+// cubes and pictures (pseudo-RGB, a band or band range, error heatmaps).
+#include <filesystem>
+#include <iostream>
+
+#include "app/registry.h"
+#include "app/trained_run.h"
+#include "core/error.h"
+#include "eval/evaluate.h"
+#include "eval/render_frames.h"
+
+namespace ddhgs::app {
+namespace {
+namespace fs = std::filesystem;
+
+struct RenderArgs {
+  std::string run;
+  std::string split = "test";
+  int orbit = 0;
+  std::string out;
+  std::string format = "png";
+  std::string band_range;
+  std::string band;
+  std::string colormap = "viridis";
+  bool diff = false;
+  double diff_max = 0.1;
+  std::string data;
+};
+
+Action setup(CLI::App& parent) {
+  auto args = std::make_shared<RenderArgs>();
+  CLI::App* cmd = parent.add_subcommand(
+      "render", "Render a trained run's views or an orbit to cubes and pictures");
+  cmd->add_option("run", args->run, "Run folder written by ddhgs train")->required();
+  auto* split = cmd->add_option("--split", args->split, "Dataset views to render")
+                    ->check(CLI::IsMember({"test", "train", "all"}))
+                    ->capture_default_str();
+  cmd->add_option("--orbit", args->orbit,
+                  "Render N frames on a smooth orbit fitted to the training cameras instead")
+      ->check(CLI::PositiveNumber)
+      ->excludes(split);
+  cmd->add_option("--out", args->out,
+                  "Output folder (default RUN/renders/<split> or RUN/renders/orbit)");
+  cmd->add_option("--format", args->format,
+                  "png: pictures only; npy or envi: float32 cubes as well")
+      ->check(CLI::IsMember({"png", "npy", "envi"}))
+      ->capture_default_str();
+  auto* bands = cmd->add_option("--bands", args->band_range,
+                                "Show the mean of the bands in MIN:MAX nm (default pseudo-RGB)");
+  cmd->add_option("--band", args->band, "Show one band, by index")->excludes(bands);
+  cmd->add_option("--colormap", args->colormap, "Colour map for bands and error heatmaps")
+      ->check(CLI::IsMember({"viridis", "gray", "grey"}))
+      ->capture_default_str();
+  cmd->add_flag("--diff", args->diff,
+                "For views with ground truth, also an error heatmap and a truth | render | error "
+                "comparison");
+  cmd->add_option("--diff-max", args->diff_max,
+                  "Absolute error (reflectance) at the top of the heatmap scale")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
+  return [args] {
+    TrainedRun run = open_trained_run(args->run, args->data);
+    const io::Scene& scene = *run.scene;
+    eval::RenderOptions options;
+    options.format = eval::parse_output_format(args->format);
+    options.bands = eval::select_bands(args->band, args->band_range, scene.wavelengths_nm);
+    options.colormap = eval::parse_colormap(args->colormap);
+    options.diff = args->diff;
+    options.diff_max = args->diff_max;
+    std::string what = args->orbit > 0 ? "orbit" : args->split;
+    options.out_dir = args->out.empty() ? run.root / "renders" / what : fs::path(args->out);
+
+    std::vector<eval::Frame> frames =
+        args->orbit > 0 ? eval::orbit_frames(scene, args->orbit)
+                        : eval::view_frames(scene, eval::split_views(scene, args->split));
+    core::require(!frames.empty(), scene.root, "the " + what + " split has no views to render");
+    int files = eval::render_frames(scene, run.gaussians, run.background, frames, options);
+    std::cout << "rendered " << frames.size() << " frames (" << what << "): " << files
+              << " files in " << options.out_dir.string() << "\n";
+    return 0;
+  };
+}
+
+Registrar registrar("render", 60, setup);
+
+}  // namespace
+}  // namespace ddhgs::app

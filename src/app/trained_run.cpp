@@ -1,0 +1,71 @@
+#include "app/trained_run.h"
+
+#include <cmath>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "io/ply.h"
+#include "train/config.h"
+#include "train/run_folder.h"
+
+namespace ddhgs::app {
+namespace fs = std::filesystem;
+
+namespace {
+
+// data.path as written by `ddhgs train`; a relative path is tried from the
+// current folder, then from the run folder.
+fs::path dataset_path(const TrainedRun& run, const std::string& data_override) {
+  if (!data_override.empty()) {
+    core::require(fs::is_directory(data_override), data_override,
+                  "no such dataset folder (--data)");
+    return data_override;
+  }
+  const fs::path config_file = train::RunPaths{run.root}.config();
+  const auto& path = run.config.at("data").at("path");
+  core::require(path.is_string() && !path.get<std::string>().empty(), config_file,
+                "data.path is empty: which dataset was this run trained on? (pass --data DIR)");
+  fs::path p = path.get<std::string>();
+  if (p.is_relative() && !fs::exists(p) && fs::exists(run.root / p)) p = run.root / p;
+  core::require(
+      fs::is_directory(p), config_file,
+      "data.path '" + p.string() + "' is not a folder (dataset moved or deleted? pass --data DIR)");
+  return p;
+}
+
+void check_model_matches_scene(const fs::path& ply_path, const io::GaussianPly& ply,
+                               const io::Scene& scene) {
+  core::require(ply.bands() == scene.bands(), ply_path,
+                "the model has " + std::to_string(ply.bands()) + " bands but the dataset " +
+                    scene.root.string() + " loads " + std::to_string(scene.bands()));
+  if (ply.wavelengths_nm.empty()) return;
+  for (size_t b = 0; b < ply.wavelengths_nm.size(); ++b)
+    core::require(std::abs(ply.wavelengths_nm[b] - scene.wavelengths_nm[b]) < 1e-3, ply_path,
+                  "band " + std::to_string(b) + " is at " + std::to_string(ply.wavelengths_nm[b]) +
+                      " nm in the model but " + std::to_string(scene.wavelengths_nm[b]) +
+                      " nm in the dataset");
+}
+
+}  // namespace
+
+TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_override) {
+  core::require(fs::is_directory(run_dir), run_dir,
+                "not a folder (expected a run folder written by ddhgs train)");
+  TrainedRun run;
+  run.root = run_dir;
+  train::RunPaths paths{run_dir};
+  run.config = train::read_run_config(paths);
+  core::require(fs::exists(paths.gaussians()), paths.gaussians(),
+                "missing: the run has no final model (did training finish?)");
+  io::GaussianPly ply = io::read_gaussian_ply(paths.gaussians());
+
+  fs::path data = dataset_path(run, data_override);
+  run.scene = io::load_scene(data, train::load_options(run.config));
+  for (const std::string& warning : run.scene->warnings) core::log_warn(warning);
+  check_model_matches_scene(paths.gaussians(), ply, *run.scene);
+  run.gaussians = model::from_ply(ply);
+  run.background = train::background(run.config, run.scene->bands());
+  return run;
+}
+
+}  // namespace ddhgs::app
