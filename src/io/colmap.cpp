@@ -84,6 +84,17 @@ ColmapModel read_colmap(const fs::path& dir) {
   return read_colmap_text(dir);
 }
 
+void check_colmap_model(const ColmapModel& model) {
+  for (const auto& [id, camera] : model.cameras) {
+    std::string origin = "COLMAP camera " + std::to_string(id);
+    core::require(camera.params.size() == colmap_param_count(camera.model, origin),
+                  origin + ": parameter count does not match model " + camera.model);
+  }
+  for (const auto& image : model.images)
+    core::require(image.xys.size() == image.point3d_ids.size(),
+                  "COLMAP image " + image.name + ": keypoints and point ids differ in count");
+}
+
 core::Intrinsics colmap_intrinsics(const ColmapCamera& camera) {
   std::string origin = "COLMAP camera " + std::to_string(camera.camera_id);
   size_t expected = colmap_param_count(camera.model, origin);

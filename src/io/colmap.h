@@ -58,6 +58,7 @@ ColmapModel read_colmap_binary(const std::filesystem::path& dir);
 ColmapModel read_colmap_text(const std::filesystem::path& dir);
 
 // Atomic writers (each file written to a temporary name, then renamed).
+// Both first call check_colmap_model.
 void write_colmap_binary(const std::filesystem::path& dir, const ColmapModel& model);
 void write_colmap_text(const std::filesystem::path& dir, const ColmapModel& model);
 
@@ -67,6 +68,10 @@ size_t colmap_param_count(const std::string& model, const std::string& origin);
 // COLMAP's numeric model id <-> name, for the binary format.
 std::string colmap_model_name(int model_id, const std::string& origin);
 int colmap_model_id(const std::string& model, const std::string& origin);
+
+// core::Error unless every camera's parameter count fits its model and every
+// image has one point3D id per keypoint: what both formats rely on.
+void check_colmap_model(const ColmapModel& model);
 
 core::Intrinsics colmap_intrinsics(const ColmapCamera& camera);
 // World-to-camera (OpenCV) of image; core::Error when its camera is missing.

@@ -157,15 +157,13 @@ ColmapModel read_colmap_binary(const fs::path& dir) {
 }
 
 void write_colmap_binary(const fs::path& dir, const ColmapModel& model) {
+  check_colmap_model(model);
   fs::create_directories(dir);
   Writer cameras;
   cameras.put<uint64_t>(model.cameras.size());
   for (const auto& [id, camera] : model.cameras) {
-    std::string origin = "COLMAP camera " + std::to_string(id);
-    core::require(camera.params.size() == colmap_param_count(camera.model, origin),
-                  origin + ": parameter count does not match model " + camera.model);
     cameras.put<int32_t>(id);
-    cameras.put<int32_t>(colmap_model_id(camera.model, origin));
+    cameras.put<int32_t>(colmap_model_id(camera.model, "COLMAP camera " + std::to_string(id)));
     cameras.put<uint64_t>(uint64_t(camera.width));
     cameras.put<uint64_t>(uint64_t(camera.height));
     for (double p : camera.params) cameras.put(p);
@@ -174,8 +172,6 @@ void write_colmap_binary(const fs::path& dir, const ColmapModel& model) {
   Writer images;
   images.put<uint64_t>(model.images.size());
   for (const auto& image : model.images) {
-    core::require(image.xys.size() == image.point3d_ids.size(),
-                  "COLMAP image " + image.name + ": keypoints and point ids differ in count");
     images.put<int32_t>(image.image_id);
     for (double q : image.qvec) images.put(q);
     images.put(image.tvec.x);

@@ -158,15 +158,13 @@ ColmapModel read_colmap_text(const fs::path& dir) {
 }
 
 void write_colmap_text(const fs::path& dir, const ColmapModel& model) {
+  check_colmap_model(model);
   fs::create_directories(dir);
   std::ostringstream cameras;
   cameras << "# Camera list with one line of data per camera:\n"
           << "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
           << "# Number of cameras: " << model.cameras.size() << "\n";
   for (const auto& [id, camera] : model.cameras) {
-    std::string origin = "COLMAP camera " + std::to_string(id);
-    core::require(camera.params.size() == colmap_param_count(camera.model, origin),
-                  origin + ": parameter count does not match model " + camera.model);
     cameras << id << " " << camera.model << " " << camera.width << " " << camera.height;
     for (double p : camera.params) cameras << " " << num(p);
     cameras << "\n";
@@ -178,8 +176,6 @@ void write_colmap_text(const fs::path& dir, const ColmapModel& model) {
          << "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
          << "# Number of images: " << model.images.size() << "\n";
   for (const auto& image : model.images) {
-    core::require(image.xys.size() == image.point3d_ids.size(),
-                  "COLMAP image " + image.name + ": keypoints and point ids differ in count");
     images << image.image_id;
     for (double q : image.qvec) images << " " << num(q);
     images << " " << num(image.tvec.x) << " " << num(image.tvec.y) << " " << num(image.tvec.z)
