@@ -1,0 +1,90 @@
+// One splat evaluated against a run of up to 8 pixels of a row: the scalar
+// heart of blending (power, exp, alpha, the 1/255 test), vectorised over
+// pixels. Internal to the render layer; forward and backward share it, so the
+// backward replays the forward's decisions bit for bit.
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
+
+namespace ddhgs::render {
+
+constexpr int kRowLanes = 8;  // pixels of a row evaluated together
+constexpr float kMinAlpha = 1.0f / 255.0f;
+constexpr float kMaxAlpha = 0.99f;
+
+// Per-Gaussian screen data the inner loop reads, packed for locality.
+struct Splat {
+  float mx, my, a, b, c, opacity, depth;
+  float skip_power;    // power beyond which alpha < 1/255 for sure
+  float ext_x, ext_y;  // half extents (px) of the region with alpha >= 1/255
+};
+
+#if defined(__AVX2__) && defined(__FMA__)
+// exp(x) for x <= 0 (Cephes expf: Cody-Waite reduction and a degree-5
+// polynomial, about 1 ulp): 8 lanes for the price of one libm call.
+inline __m256 exp_nonpositive(__m256 x) {
+  x = _mm256_max_ps(x, _mm256_set1_ps(-87.0f));
+  const __m256 n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)),
+                                   _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+  __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(0.693359375f), x);
+  r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-2.12194440e-4f), r);
+  __m256 p = _mm256_set1_ps(1.9875691500e-4f);
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.3981999507e-3f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(8.3334519073e-3f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(4.1665795894e-2f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.6666665459e-1f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(5.0000001201e-1f));
+  p = _mm256_fmadd_ps(p, _mm256_mul_ps(r, r), _mm256_add_ps(r, _mm256_set1_ps(1.0f)));
+  const __m256i scale =
+      _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
+  return _mm256_mul_ps(p, _mm256_castsi256_ps(scale));
+}
+
+// Pixels x .. x+count-1 of one row (count <= 8) against splat g: bit i is set
+// where pixel x+i is not done and has alpha >= 1/255; raw[i] = o exp(-power).
+inline unsigned splat_row(const Splat& g, int x, int count, float dy, const uint8_t* done,
+                          float* raw) {
+  const __m256 xs =
+      _mm256_add_ps(_mm256_set1_ps(float(x) + 0.5f), _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
+  const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(g.mx), xs);
+  const __m256 dyv = _mm256_set1_ps(dy);
+  // power = 0.5 (a dx^2 + c dy^2) + b dx dy
+  const __m256 quad =
+      _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(g.a), dx), dx, _mm256_set1_ps(g.c * dy * dy));
+  const __m256 power = _mm256_fmadd_ps(_mm256_set1_ps(0.5f), quad,
+                                       _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(g.b), dx), dyv));
+  const __m256 r = _mm256_mul_ps(_mm256_set1_ps(g.opacity),
+                                 exp_nonpositive(_mm256_sub_ps(_mm256_setzero_ps(), power)));
+  _mm256_storeu_ps(raw, r);
+  const __m256 alpha = _mm256_min_ps(r, _mm256_set1_ps(kMaxAlpha));
+  const __m256 keep = _mm256_and_ps(_mm256_cmp_ps(power, _mm256_set1_ps(g.skip_power), _CMP_LE_OQ),
+                                    _mm256_cmp_ps(alpha, _mm256_set1_ps(kMinAlpha), _CMP_GE_OQ));
+  uint64_t done8;
+  std::memcpy(&done8, done, sizeof done8);
+  const __m256i live = _mm256_cmpeq_epi32(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(int64_t(done8))),
+                                          _mm256_setzero_si256());
+  const unsigned bits =
+      unsigned(_mm256_movemask_ps(_mm256_and_ps(keep, _mm256_castsi256_ps(live))));
+  return bits & ((1u << count) - 1);
+}
+#else
+inline unsigned splat_row(const Splat& g, int x, int count, float dy, const uint8_t* done,
+                          float* raw) {
+  unsigned bits = 0;
+  for (int i = 0; i < count; ++i) {
+    const float dx = g.mx - (float(x + i) + 0.5f);
+    const float power = 0.5f * (g.a * dx * dx + g.c * dy * dy) + g.b * dx * dy;
+    raw[i] = g.opacity * std::exp(-power);
+    const float alpha = raw[i] < kMaxAlpha ? raw[i] : kMaxAlpha;
+    if (!done[i] && power <= g.skip_power && alpha >= kMinAlpha) bits |= 1u << i;
+  }
+  return bits;
+}
+#endif
+
+}  // namespace ddhgs::render
