@@ -19,8 +19,9 @@ packages=(build-essential cmake ninja-build pkg-config libtorch-dev libopenblas0
           libgtest-dev libbenchmark-dev)
 if [ "$with_tests" = 1 ]; then
   # Independent cross-checks in tests: numpy for metrics and .npy files,
-  # PyTorch for .pt files written by torch.save.
-  packages+=(python3 python3-numpy python3-torch)
+  # PyTorch for .pt files written by torch.save; headless Chromium opens the
+  # HTML report (tests/app/test_report_cli.cpp).
+  packages+=(python3 python3-numpy python3-torch chromium)
 fi
 
 missing=()

@@ -1,0 +1,81 @@
+// `ddhgs report RUN`: a self-contained HTML report of a trained run (metrics,
+// curves, per-band quality, pictures and a spectral viewer).
+#include <filesystem>
+#include <iostream>
+
+#include "app/registry.h"
+#include "app/trained_run.h"
+#include "core/error.h"
+#include "eval/report.h"
+#include "io/atomic_file.h"
+#include "train/run_folder.h"
+
+namespace ddhgs::app {
+namespace {
+namespace fs = std::filesystem;
+
+struct ReportArgs {
+  std::string run;
+  std::string out;
+  std::string data;
+  int views = 4;
+  int viewer_px = 256;
+  double diff_max = 0.1;
+};
+
+nlohmann::json read_json_if_present(const fs::path& path) {
+  if (!fs::exists(path)) return nullptr;
+  try {
+    return nlohmann::json::parse(io::read_file(path));
+  } catch (const nlohmann::json::exception&) {
+    throw core::Error(path, "is not valid JSON");
+  }
+}
+
+Action setup(CLI::App& parent) {
+  auto args = std::make_shared<ReportArgs>();
+  CLI::App* cmd = parent.add_subcommand(
+      "report",
+      "Write an HTML report of a trained run (RUN/report/index.html): metrics, training curves, "
+      "per-band PSNR/RMSE and SAM, ground truth | render | error pictures and a spectral viewer; "
+      "opens from disk");
+  cmd->add_option("run", args->run, "Run folder written by ddhgs train")->required();
+  cmd->add_option("--out", args->out, "Report folder (default RUN/report); replaced if it exists");
+  cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
+  cmd->add_option("--views", args->views, "Test views shown as pictures and in the viewer")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--viewer-px", args->viewer_px,
+                  "Longer side of the viewer's band images, pixels (area-averaged down)")
+      ->check(CLI::Range(8, 4096))
+      ->capture_default_str();
+  cmd->add_option("--diff-max", args->diff_max,
+                  "Reflectance error at the top of the heatmap colour map")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  return [args] {
+    TrainedRun run = open_trained_run(args->run, args->data);
+    train::RunPaths paths{run.root};
+    eval::RunRecords records;
+    fs::path name = fs::absolute(run.root).lexically_normal();
+    records.name = (name.filename().empty() ? name.parent_path() : name).filename().string();
+    records.config = run.config;
+    records.metrics_log = eval::read_metrics_log(paths.metrics());
+    records.train_summary = read_json_if_present(paths.summary());
+    records.eval_metrics = read_json_if_present(run.root / "eval" / "metrics.json");
+    eval::ReportOptions options;
+    options.out_dir = args->out.empty() ? run.root / "report" : fs::path(args->out);
+    options.max_views = args->views;
+    options.viewer_max_px = args->viewer_px;
+    options.diff_max = args->diff_max;
+    fs::path index =
+        eval::write_report(*run.scene, run.gaussians, run.background, records, options);
+    std::cout << "report: " << index.string() << "\n";
+    return 0;
+  };
+}
+
+Registrar registrar("report", 55, setup);
+
+}  // namespace
+}  // namespace ddhgs::app

@@ -1,0 +1,331 @@
+#include "eval/report.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "eval/metrics.h"
+#include "eval/report_assets.h"
+#include "eval/report_views.h"
+#include "io/atomic_file.h"
+#include "io/cube.h"
+#include "io/image.h"
+
+namespace ddhgs::eval {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+// The placeholder in web/report/index.html where the viewer's data scripts go.
+constexpr const char* kViewerScriptsMarker = "<!-- viewer data -->";
+
+// Metrics of the report's views against one kind of ground truth.
+struct TruthMetrics {
+  std::string key;    // "views" or "clean"
+  std::string title;  // for tables and legends
+  std::vector<ImageMetrics> per_view;
+  std::vector<torch::Tensor> band_rmse;  // per view, double [N]
+
+  json row(const std::string& label) const {
+    ImageMetrics m = mean_metrics(per_view);
+    return {{"label", label},
+            {"psnr", m.psnr_db},
+            {"ssim", m.ssim},
+            {"sam", m.sam_rad},
+            {"rmse", m.rmse}};
+  }
+  std::vector<double> mean_band_psnr() const { return mean_metrics(per_view).band_psnr_db; }
+  std::vector<double> mean_band_rmse() const {
+    torch::Tensor mean = torch::stack(band_rmse).mean(0).contiguous();
+    return std::vector<double>(mean.data_ptr<double>(), mean.data_ptr<double>() + mean.numel());
+  }
+  std::vector<double> sam_per_view() const {
+    std::vector<double> out;
+    for (const auto& m : per_view) out.push_back(m.sam_rad);
+    return out;
+  }
+};
+
+// sqrt of the mean squared error over pixels, per band: double [N].
+torch::Tensor band_rmse(const torch::Tensor& pred,  // [H, W, N]
+                        const torch::Tensor& gt) {  // [H, W, N]
+  return (pred.to(torch::kDouble) - gt.to(torch::kDouble))
+      .square()
+      .mean(at::IntArrayRef{0, 1})
+      .sqrt();
+}
+
+// Shortest exact-enough text of a number, e.g. 0.1 or 1082.5.
+std::string number(double value) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", value);
+  return buf;
+}
+
+// File-name-safe form of a view's stem.
+std::string safe_name(const std::string& name) {
+  std::string out = name;
+  for (char& c : out)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
+  return out;
+}
+
+json null_or(const json& record, const char* key) {
+  return record.contains(key) ? record.at(key) : json();
+}
+
+json training_curves(const std::vector<json>& log) {
+  json curves = json::object();
+  for (const char* key : {"iter", "loss", "train_psnr", "num_gaussians"}) {
+    curves[key] = json::array();
+    for (const json& record : log)
+      if (record.contains("iter")) curves[key].push_back(null_or(record, key));
+  }
+  return curves;
+}
+
+json data_summary(const io::Scene& scene, const model::Gaussians& gaussians) {
+  const core::Intrinsics& k = scene.views.front().camera.intrinsics;
+  json s = {{"dataset", fs::absolute(scene.root).string()},
+            {"layout", scene.layout},
+            {"views", scene.views.size()},
+            {"train views", scene.train.size()},
+            {"test views", scene.test.size()},
+            {"resolution px", std::to_string(k.width) + " x " + std::to_string(k.height)},
+            {"bands", scene.bands()},
+            {"stored sample type", io::to_string(scene.stored_type)},
+            {"clean ground truth", scene.has_clean() ? "yes (synthetic scene)" : "no"},
+            {"sparse points", scene.points.xyz.defined() ? scene.points.xyz.size(0) : 0},
+            {"Gaussians", gaussians.size()}};
+  if (!scene.wavelengths_nm.empty()) {
+    s["wavelengths nm"] =
+        number(scene.wavelengths_nm.front()) + " - " + number(scene.wavelengths_nm.back());
+  }
+  return s;
+}
+
+// Rows from eval/metrics.json beyond what the report measures itself, such as
+// the denoiser's output once `ddhgs eval` writes it.
+void add_eval_rows(const json& eval_metrics, json& rows) {
+  if (!eval_metrics.is_object()) return;
+  for (const auto& [key, value] : eval_metrics.items()) {
+    if (key == "clean" || !value.is_object() || !value.contains("psnr") ||
+        !value["psnr"].is_number())
+      continue;
+    rows.push_back({{"label", key + " (from eval/metrics.json)"},
+                    {"psnr", null_or(value, "psnr")},
+                    {"ssim", null_or(value, "ssim")},
+                    {"sam", null_or(value, "sam")},
+                    {"rmse", null_or(value, "rmse")}});
+  }
+}
+
+std::string metrics_note(const RunRecords& records, size_t views, const std::string& split) {
+  std::ostringstream note;
+  note << "Means over " << views << " " << split
+       << " views, computed as `ddhgs eval` does; PSNR per view then averaged (capped at "
+       << kMaxPsnrDb << " dB), SSIM 11x11 Gaussian window, SAM in radians. ";
+  const json& e = records.eval_metrics;
+  if (e.is_object() && e.contains("fps"))
+    note << "Render speed from eval/metrics.json: " << e["fps"].get<double>() << " FPS. ";
+  bool denoised = false;
+  if (e.is_object())
+    for (const auto& item : e.items()) denoised |= item.key().find("denois") != std::string::npos;
+  if (!denoised) note << "No denoised output in this run: rows are the raw render.";
+  return note.str();
+}
+
+void write_viewer_script(const fs::path& path, const std::string& name,
+                         const std::vector<std::pair<std::string, torch::Tensor>>& cubes,
+                         int max_px, json& meta) {
+  json uris;
+  for (const auto& [key, cube] : cubes) {
+    BandAtlas atlas = band_atlas(cube, max_px);
+    uris[key] = png_data_uri(atlas.pixels, path.string() + "." + key + ".png");
+    meta = {{"name", name},
+            {"width", atlas.width},
+            {"height", atlas.height},
+            {"cols", atlas.cols},
+            {"rows", atlas.rows}};
+  }
+  io::write_file_atomically(path,
+                            "window.DDHGS_VIEWER_DATA = window.DDHGS_VIEWER_DATA || {};\n"
+                            "window.DDHGS_VIEWER_DATA[" +
+                                json(name).dump() + "] = " + uris.dump() + ";\n");
+}
+
+// An existing --out folder is replaced only when it is an earlier report, so
+// a mistyped path cannot wipe unrelated files.
+void check_replaceable(const fs::path& out) {
+  if (!fs::exists(out)) return;
+  core::require(fs::is_directory(out) &&
+                    (fs::is_empty(out) ||
+                     (fs::exists(out / "index.html") && fs::exists(out / "assets" / "data.js"))),
+                out, "exists and is not a ddhgs report; choose another --out");
+}
+
+}  // namespace
+
+std::vector<json> read_metrics_log(const fs::path& path) {
+  std::vector<json> records;
+  if (!fs::exists(path)) return records;
+  std::istringstream lines(io::read_file(path));
+  int number = 0;
+  for (std::string line; std::getline(lines, line);) {
+    ++number;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    try {
+      records.push_back(json::parse(line));
+    } catch (const json::exception&) {
+      throw core::Error(path, "line " + std::to_string(number) + " is not a JSON object");
+    }
+  }
+  return records;
+}
+
+namespace {
+
+// Writes the whole report into stage (an empty folder).
+void build_report(const fs::path& stage, const io::Scene& scene, const model::Gaussians& gaussians,
+                  const torch::Tensor& background, const RunRecords& records,
+                  const ReportOptions& options) {
+  const bool on_test = !scene.test.empty();
+  const std::vector<int>& views = on_test ? scene.test : scene.train;
+  const std::string split = on_test ? "test" : "training (the scene has no test views)";
+  const std::vector<double>& wl = scene.wavelengths_nm;
+  const std::vector<BandSelection> selections = report_band_selections(wl);
+
+  fs::create_directories(stage / "assets" / "views");
+  fs::create_directories(stage / "assets" / "viewer");
+
+  TruthMetrics stored{"views", "captured views", {}, {}};
+  TruthMetrics clean{"clean", "clean ground truth", {}, {}};
+  json figure_views = json::array(), viewer_views = json::array(), viewer_scripts = json::array();
+  core::ProgressBar bar("report", int64_t(views.size()));
+  for (size_t i = 0; i < views.size(); ++i) {
+    const int v = views[i];
+    // Not clamped, so the numbers are those of `ddhgs eval`; pictures clamp.
+    torch::Tensor render =
+        model::render_gaussians(gaussians, scene.views[size_t(v)].camera, background).image;
+    torch::Tensor captured = scene.image(v);           // [H, W, N]
+    torch::Tensor clean_truth = scene.clean_image(v);  // [H, W, N] or undefined
+    stored.per_view.push_back(compute_metrics(render, captured));
+    stored.band_rmse.push_back(band_rmse(render, captured));
+    if (clean_truth.defined()) {
+      clean.per_view.push_back(compute_metrics(render, clean_truth));
+      clean.band_rmse.push_back(band_rmse(render, clean_truth));
+    }
+    if (int(i) < options.max_views) {
+      const std::string name = scene.views[size_t(v)].name;
+      const std::string file = safe_name(name);
+      const torch::Tensor& truth = clean_truth.defined() ? clean_truth : captured;
+      json files;
+      for (const BandSelection& s : selections) {
+        std::string rel = "assets/views/" + file + "_" + s.label + ".png";
+        io::write_png(stage / rel, comparison_figure(render, truth, wl, s, options.diff_max));
+        files[s.label] = rel;
+      }
+      figure_views.push_back({{"name", name}, {"files", files}});
+      std::vector<std::pair<std::string, torch::Tensor>> cubes = {{"render", render},
+                                                                  {"views", captured}};
+      if (clean_truth.defined()) cubes.emplace_back("clean", clean_truth);
+      json meta;
+      std::string script = "assets/viewer/" + file + ".js";
+      write_viewer_script(stage / script, name, cubes, options.viewer_max_px, meta);
+      viewer_views.push_back(meta);
+      viewer_scripts.push_back(script);
+    }
+    bar.update(int64_t(i + 1));
+  }
+
+  const bool has_clean = !clean.per_view.empty();
+  json metrics = json::array({stored.row("render vs captured views")});
+  if (has_clean) metrics.push_back(clean.row("render vs clean ground truth"));
+  add_eval_rows(records.eval_metrics, metrics);
+  std::vector<const TruthMetrics*> truths = {&stored};
+  if (has_clean) truths.push_back(&clean);
+  json psnr = json::array(), rmse = json::array(), sam = json::array(), sources = json::array();
+  sources.push_back({{"key", "render"}, {"title", "render"}});
+  for (const TruthMetrics* t : truths) {
+    psnr.push_back({{"label", "vs " + t->title}, {"values", t->mean_band_psnr()}});
+    rmse.push_back({{"label", "vs " + t->title}, {"values", t->mean_band_rmse()}});
+    sam.push_back({{"label", "vs " + t->title}, {"values", t->sam_per_view()}});
+    sources.push_back({{"key", t->key}, {"title", t->title}});
+  }
+  json view_names = json::array();
+  for (int v : views) view_names.push_back(scene.views[size_t(v)].name);
+  json selection_menu = json::array();
+  for (const BandSelection& s : selections)
+    selection_menu.push_back({{"label", s.label}, {"title", selection_title(s, wl)}});
+
+  json data = {{"title", "ddhgs report: " + records.name},
+               {"subtitle", std::to_string(gaussians.size()) + " Gaussians, " +
+                                std::to_string(scene.bands()) + " bands, " + split + " views of " +
+                                fs::absolute(scene.root).string()},
+               {"wavelengths_nm", wl},
+               {"metrics", metrics},
+               {"metrics_note", metrics_note(records, views.size(), split)},
+               {"curves", training_curves(records.metrics_log)},
+               {"per_band", {{"psnr", psnr}, {"rmse", rmse}}},
+               {"sam_per_view", {{"views", view_names}, {"series", sam}}},
+               {"figures",
+                {{"selections", selection_menu},
+                 {"views", figure_views},
+                 {"caption", std::string(has_clean ? "clean ground truth" : "captured view") +
+                                 " | render | |render - truth| (colour bar 0 to " +
+                                 number(options.diff_max) + " reflectance)"}}},
+               {"viewer", {{"views", viewer_views}, {"sources", sources}}},
+               {"viridis", viridis_lut()},
+               {"diff_max", options.diff_max},
+               {"data_summary", data_summary(scene, gaussians)},
+               {"train_summary", records.train_summary},
+               {"config", records.config}};
+  io::write_file_atomically(stage / "assets" / "data.js",
+                            "window.DDHGS_REPORT = " + data.dump() + ";\n");
+
+  for (const ReportAsset& asset : report_assets()) {
+    if (asset.name != "index.html") {
+      io::write_file_atomically(stage / "assets" / asset.name, asset.contents);
+      continue;
+    }
+    std::string page = asset.contents;
+    std::string scripts;
+    for (const json& s : viewer_scripts)
+      scripts += "<script src=\"" + s.get<std::string>() + "\"></script>\n";
+    size_t at = page.find(kViewerScriptsMarker);
+    core::require(at != std::string::npos, asset.source, "has no viewer-data placeholder");
+    page.replace(at, std::string(kViewerScriptsMarker).size(), scripts);
+    io::write_file_atomically(stage / "index.html", page);
+  }
+  bar.finish();
+}
+
+}  // namespace
+
+fs::path write_report(const io::Scene& scene, const model::Gaussians& gaussians,
+                      const torch::Tensor& background, const RunRecords& records,
+                      const ReportOptions& options) {
+  torch::NoGradGuard no_grad;
+  core::require(!scene.views.empty(), scene.root, "the dataset has no views to report on");
+  fs::path out = fs::absolute(options.out_dir).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();  // "DIR/"
+  check_replaceable(out);
+  const fs::path stage = out.parent_path() / (out.filename().string() + ".tmp");
+  fs::remove_all(stage);
+  try {
+    build_report(stage, scene, gaussians, background, records, options);
+  } catch (...) {
+    std::error_code ignored;  // the original error matters, not this one
+    fs::remove_all(stage, ignored);
+    throw;
+  }
+  fs::remove_all(out);
+  fs::rename(stage, out);
+  return out / "index.html";
+}
+
+}  // namespace ddhgs::eval

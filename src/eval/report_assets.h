@@ -1,0 +1,18 @@
+// The static files of a report page (page template, script, style, and the
+// vendored uPlot charting library with its licence), carried inside the
+// binary; generated from web/ by web/embed.py.
+#pragma once
+#include <string>
+#include <vector>
+
+namespace ddhgs::eval {
+
+struct ReportAsset {
+  std::string name;      // "index.html", or a file name under REPORT/assets/
+  std::string source;    // where it comes from in the source tree, e.g. "web/report/report.js"
+  std::string contents;  // UTF-8 text
+};
+
+const std::vector<ReportAsset>& report_assets();
+
+}  // namespace ddhgs::eval

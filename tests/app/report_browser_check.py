@@ -1,0 +1,215 @@
+#!/usr/bin/env python3
+"""Opens a ddhgs report in headless Chromium over the DevTools protocol (pipe
+transport, no extra packages), moves the wavelength slider and clicks a pixel
+with real input events, and checks from the page that the band image and the
+spectrum plot changed and that the console stayed free of errors. Saves a
+screenshot. Prints one JSON object; exit status 0 when every check passed.
+
+usage: report_browser_check.py CHROMIUM INDEX_HTML SCREENSHOT_PNG PROFILE_DIR
+"""
+import base64
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import time
+
+FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-quic",
+    "--remote-debugging-pipe",
+    "--window-size=1280,2000",
+]
+TIMEOUT_S = 60
+
+
+class DevTools:
+    """DevTools protocol over --remote-debugging-pipe: Chromium reads
+    NUL-terminated JSON commands on fd 3 and writes replies on fd 4."""
+
+    def __init__(self, chromium, profile):
+        to_chrome_r, self.to_chrome = os.pipe()
+        self.from_chrome, from_chrome_w = os.pipe()
+
+        def child_fds():
+            # Via fresh copies, in case the pipes themselves sit on fds 3 or 4;
+            # dup2 leaves the targets inheritable, everything else closes at exec.
+            read_end, write_end = os.dup(to_chrome_r), os.dup(from_chrome_w)
+            os.dup2(read_end, 3)
+            os.dup2(write_end, 4)
+
+        self.proc = subprocess.Popen(
+            [chromium] + FLAGS + ["--user-data-dir=" + profile, "about:blank"],
+            close_fds=False,
+            preexec_fn=child_fds,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        os.close(to_chrome_r)
+        os.close(from_chrome_w)
+        self.buffer = b""
+        self.next_id = 0
+        self.events = []
+        self.session = None
+
+    def _read_message(self):
+        while b"\0" not in self.buffer:
+            chunk = os.read(self.from_chrome, 1 << 20)
+            if not chunk:
+                raise RuntimeError("chromium closed the DevTools pipe")
+            self.buffer += chunk
+        message, self.buffer = self.buffer.split(b"\0", 1)
+        return json.loads(message)
+
+    def send(self, method, params=None, browser=False):
+        self.next_id += 1
+        command = {"id": self.next_id, "method": method, "params": params or {}}
+        if self.session and not browser:
+            command["sessionId"] = self.session
+        os.write(self.to_chrome, json.dumps(command).encode() + b"\0")
+        deadline = time.time() + TIMEOUT_S
+        while time.time() < deadline:
+            message = self._read_message()
+            if message.get("id") == self.next_id:
+                if "error" in message:
+                    raise RuntimeError(method + ": " + json.dumps(message["error"]))
+                return message.get("result", {})
+            self.events.append(message)
+        raise RuntimeError(method + ": no reply")
+
+    def evaluate(self, expression):
+        result = self.send(
+            "Runtime.evaluate",
+            {"expression": expression, "returnByValue": True, "awaitPromise": True},
+        )
+        if "exceptionDetails" in result:
+            raise RuntimeError("page threw: " + json.dumps(result["exceptionDetails"]))
+        return result["result"].get("value")
+
+    def wait_for(self, expression, what):
+        deadline = time.time() + TIMEOUT_S
+        while time.time() < deadline:
+            if self.evaluate(expression):
+                return
+            time.sleep(0.1)
+        raise RuntimeError("timed out waiting for " + what)
+
+    def click(self, x, y):
+        for kind in ("mousePressed", "mouseReleased"):
+            self.send(
+                "Input.dispatchMouseEvent",
+                {"type": kind, "x": x, "y": y, "button": "left", "clickCount": 1},
+            )
+
+    def close(self):
+        try:
+            self.send("Browser.close", browser=True)
+        except RuntimeError:
+            pass
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+
+def console_errors(events):
+    errors = []
+    for e in events:
+        method, params = e.get("method"), e.get("params", {})
+        if method == "Runtime.consoleAPICalled" and params.get("type") in ("error", "assert"):
+            errors.append(" ".join(str(a.get("value", a.get("description"))) for a in params["args"]))
+        elif method == "Runtime.exceptionThrown":
+            errors.append(json.dumps(params["exceptionDetails"])[:500])
+        elif method == "Log.entryAdded" and params["entry"]["level"] == "error":
+            errors.append(params["entry"].get("text", "") + " " + params["entry"].get("url", ""))
+    return errors
+
+
+# Centre of an element in CSS pixels, scrolled into view first.
+CENTRE = """(() => { const e = document.querySelector(%s); e.scrollIntoView({block: 'center'});
+  const r = e.getBoundingClientRect(); return [r.left, r.top, r.width, r.height]; })()"""
+CANVAS_PIXELS = "document.getElementById(%s).toDataURL()"
+SPECTRUM_CANVAS = "document.querySelector('#spectrum canvas').toDataURL()"
+
+
+def run(chromium, index, screenshot, profile):
+    checks = {}
+    dt = DevTools(chromium, profile)
+    try:
+        targets = dt.send("Target.getTargets", browser=True)["targetInfos"]
+        page = next(t for t in targets if t["type"] == "page")
+        dt.session = dt.send(
+            "Target.attachToTarget", {"targetId": page["targetId"], "flatten": True}, browser=True
+        )["sessionId"]
+        for domain in ("Runtime", "Log", "Page"):
+            dt.send(domain + ".enable")
+        dt.send(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": 1280, "height": 2000, "deviceScaleFactor": 1, "mobile": False},
+        )
+        dt.send("Page.navigate", {"url": pathlib.Path(index).resolve().as_uri()})
+        dt.wait_for("window.ddhgsReady === true", "the report to finish building")
+        checks["bands"] = dt.evaluate("window.DDHGS_REPORT.wavelengths_nm.length")
+
+        band_before = dt.evaluate(CANVAS_PIXELS % '"canvas-render"')
+        slider_before = dt.evaluate("document.getElementById('band-slider').value")
+        left, top, width, height = dt.evaluate(CENTRE % '"#band-slider"')
+        dt.click(left + 0.97 * width, top + height / 2)  # near the slider's right end
+        dt.wait_for("document.getElementById('band-slider').value !== %s" % json.dumps(slider_before),
+                    "the slider to move")
+        checks["slider_moved"] = [slider_before, dt.evaluate("document.getElementById('band-slider').value")]
+        checks["band_label"] = dt.evaluate("document.getElementById('band-label').textContent")
+        checks["band_image_changed"] = dt.evaluate(CANVAS_PIXELS % '"canvas-render"') != band_before
+
+        spectrum_before = dt.evaluate(SPECTRUM_CANVAS)
+        left, top, width, height = dt.evaluate(CENTRE % '"#canvas-render"')
+        dt.click(left + 0.4 * width, top + 0.55 * height)
+        dt.wait_for("window.ddhgsViewer.spectraPlotted > 0", "a spectrum after the click")
+        spectrum = dt.evaluate(
+            "window.ddhgsViewer.spectrumChart.data.slice(1).map(s => s.filter(v => v !== null).length)"
+        )
+        checks["spectrum_points_per_series"] = spectrum
+        checks["spectrum_plot_changed"] = dt.evaluate(SPECTRUM_CANVAS) != spectrum_before
+        checks["clicked_pixel"] = dt.evaluate("window.ddhgsViewer.pixel")
+        checks["spectrum_label"] = dt.evaluate("document.getElementById('spectrum-label').textContent")
+
+        dt.evaluate("window.scrollTo(0, 0)")
+        shot = dt.send("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": True})
+        pathlib.Path(screenshot).write_bytes(base64.b64decode(shot["data"]))
+        time.sleep(0.2)
+        dt.evaluate("1")  # collects events that arrived meanwhile
+        checks["console_errors"] = console_errors(dt.events)
+    finally:
+        dt.close()
+    ok = (
+        checks["slider_moved"][0] != checks["slider_moved"][1]
+        and checks["band_image_changed"]
+        and checks["spectrum_plot_changed"]
+        and all(n == checks["bands"] for n in checks["spectrum_points_per_series"])
+        and len(checks["spectrum_points_per_series"]) >= 2
+        and not checks["console_errors"]
+    )
+    checks["ok"] = ok
+    return checks
+
+
+def main():
+    if len(sys.argv) != 5:
+        sys.exit(__doc__)
+    try:
+        checks = run(*sys.argv[1:])
+    except Exception as e:  # reported as one line the C++ test shows
+        checks = {"ok": False, "error": "%s: %s" % (type(e).__name__, e)}
+    print(json.dumps(checks))
+    sys.exit(0 if checks["ok"] else 1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,206 @@
+// `ddhgs report` end to end: a tiny synthesized scene, a short training run
+// through the binary, the report folder's contents checked against the run
+// (and `ddhgs eval`), then the page opened in headless Chromium, where a real
+// slider move and pixel click must change the band image and the spectrum
+// plot without console errors (tests/app/report_browser_check.py).
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+
+#include "io/atomic_file.h"
+#include "io/image.h"
+#include "support/test_support.h"
+
+namespace ddhgs {
+namespace {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+constexpr int kBands = 6;
+
+int ddhgs(const std::string& args, std::string* out) {
+  return test::run_command(test::ddhgs_binary() + " " + args, out);
+}
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+std::string last_line(std::string s) {
+  while (!s.empty() && s.back() == '\n') s.pop_back();
+  size_t at = s.rfind('\n');
+  return at == std::string::npos ? s : s.substr(at + 1);
+}
+
+// window.DDHGS_REPORT = {...}; -> the object.
+json read_report_data(const fs::path& report) {
+  std::string js = io::read_file(report / "assets" / "data.js");
+  const std::string prefix = "window.DDHGS_REPORT = ";
+  EXPECT_EQ(js.rfind(prefix, 0), 0u);
+  return json::parse(js.substr(prefix.size(), js.rfind(';') - prefix.size()));
+}
+
+// Where the screenshot and a copy of the report stay after the test (the
+// temp folders are removed at exit): ctest's working folder.
+fs::path test_output() {
+  fs::path dir = fs::current_path() / "test_output";
+  fs::create_directories(dir);
+  return dir;
+}
+
+class ReportCli : public ::testing::Test {
+ protected:
+  // 10 views: Hyper-NeRF's split keeps one test view, whose per-band PSNR and
+  // RMSE then determine each other exactly.
+  static void SetUpTestSuite() {
+    fs::path root = test::temp_dir("report_cli");
+    scene_ = new fs::path(root / "scene");
+    run_ = new fs::path(root / "run");
+    std::string out;
+    ASSERT_EQ(ddhgs("synth --preset demo --force --out " + scene_->string() +
+                        " --width 40 --height 30 --bands " + std::to_string(kBands) +
+                        " --views 10 --points 400 --supersample 1",
+                    &out),
+              0)
+        << out;
+    ASSERT_EQ(ddhgs("--threads 2 train " + scene_->string() + " --out " + run_->string() +
+                        " --preset demo --iterations 60 --checkpoint-every 1000"
+                        " --set output.log_every=10",
+                    &out),
+              0)
+        << out;
+  }
+  static void TearDownTestSuite() {
+    delete scene_;
+    delete run_;
+  }
+  static fs::path* scene_;
+  static fs::path* run_;
+};
+fs::path* ReportCli::scene_ = nullptr;
+fs::path* ReportCli::run_ = nullptr;
+
+TEST_F(ReportCli, WritesSelfContainedReportThatAgreesWithTheRun) {
+  std::string out;
+  ASSERT_EQ(ddhgs("eval " + run_->string() + " --fps-repeats 0", &out), 0) << out;
+  ASSERT_EQ(ddhgs("report " + run_->string(), &out), 0) << out;
+  const fs::path report = *run_ / "report";
+  EXPECT_TRUE(contains(out, (report / "index.html").string())) << out;
+  EXPECT_FALSE(fs::exists(run_->string() + "/report.tmp"));
+
+  // The binary's copies of the page and of uPlot are those under web/ (a
+  // stale src/eval/report_assets.cpp fails here: rerun web/embed.py).
+  const fs::path web = test::source_dir() / "web";
+  for (auto [written, source] :
+       {std::pair{"assets/report.js", "report/report.js"},
+        {"assets/report.css", "report/report.css"},
+        {"assets/uPlot.iife.min.js", "vendor/uplot-1.6.32/uPlot.iife.min.js"},
+        {"assets/uPlot.min.css", "vendor/uplot-1.6.32/uPlot.min.css"},
+        {"assets/uPlot.LICENSE.txt", "vendor/uplot-1.6.32/LICENSE"}})
+    EXPECT_EQ(io::read_file(report / written), io::read_file(web / source)) << written;
+  EXPECT_FALSE(contains(io::read_file(report / "index.html"), "<!-- viewer data -->"));
+
+  json data = read_report_data(report);
+  EXPECT_EQ(data["wavelengths_nm"].size(), size_t(kBands));
+  // Rows against the captured and the clean views; the same numbers as `ddhgs eval`.
+  json eval = json::parse(io::read_file(*run_ / "eval" / "metrics.json"));
+  ASSERT_EQ(data["metrics"].size(), 2u) << data["metrics"].dump();
+  EXPECT_NEAR(data["metrics"][0]["psnr"].get<double>(), eval["psnr"].get<double>(), 1e-6);
+  EXPECT_NEAR(data["metrics"][0]["sam"].get<double>(), eval["sam"].get<double>(), 1e-6);
+  EXPECT_NEAR(data["metrics"][1]["psnr"].get<double>(), eval["clean"]["psnr"].get<double>(), 1e-6);
+  EXPECT_NEAR(data["metrics"][1]["ssim"].get<double>(), eval["clean"]["ssim"].get<double>(), 1e-6);
+
+  // One test view: per-band PSNR = -20 log10(per-band RMSE), band by band.
+  ASSERT_EQ(data["sam_per_view"]["views"].size(), 1u);
+  const json& psnr = data["per_band"]["psnr"];
+  const json& rmse = data["per_band"]["rmse"];
+  ASSERT_EQ(psnr.size(), 2u);
+  for (size_t t = 0; t < 2; ++t)
+    for (int b = 0; b < kBands; ++b) {
+      double r = rmse[t]["values"][b].get<double>();
+      EXPECT_NEAR(psnr[t]["values"][b].get<double>(), -20 * std::log10(r), 1e-6) << t << " " << b;
+    }
+
+  // Curves: every logged iteration of metrics.jsonl (1, 10, ..., 60).
+  EXPECT_EQ(data["curves"]["iter"].size(), 7u);
+  EXPECT_EQ(data["curves"]["iter"].back(), 60);
+  EXPECT_EQ(data["train_summary"]["iterations"], 60);
+  EXPECT_EQ(data["config"]["iterations"], 60);
+
+  // Pictures: truth | render | error (+ colour bar) per selection; the
+  // paper's 1082-1100 nm window moves inside this scene's 400-1000 nm.
+  std::vector<std::string> labels;
+  for (const json& s : data["figures"]["selections"]) labels.push_back(s["label"]);
+  EXPECT_EQ(labels, (std::vector<std::string>{"rgb", "400-418nm", "750-768nm", "982-1000nm"}));
+  for (const json& view : data["figures"]["views"])
+    for (const std::string& label : labels) {
+      torch::Tensor picture = io::read_image(report / view["files"][label].get<std::string>());
+      EXPECT_EQ(picture.size(1), 3 * 40 + 2 * 4) << label;
+    }
+  // The viewer's band atlases: 6 bands in a 3 x 2 grid of 40 x 30 tiles.
+  json viewer = data["viewer"]["views"][0];
+  EXPECT_EQ(viewer["width"], 40);
+  EXPECT_EQ(viewer["cols"], 3);
+  EXPECT_EQ(viewer["rows"], 2);
+  uintmax_t bytes = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(report))
+    if (entry.is_regular_file()) bytes += entry.file_size();
+  EXPECT_LT(bytes, 1u << 20) << "a tiny run's report should stay small";
+}
+
+TEST_F(ReportCli, OpensInHeadlessChromiumAndRespondsToSliderAndClick) {
+  std::string chromium;
+  test::run_command("command -v chromium", &chromium);
+  while (!chromium.empty() && std::isspace(static_cast<unsigned char>(chromium.back())))
+    chromium.pop_back();
+  ASSERT_FALSE(chromium.empty())
+      << "chromium is not installed: run scripts/setup.sh --with-tests (Debian package chromium)";
+
+  const fs::path report = test_output() / "report_cli_report";
+  std::string out;
+  ASSERT_EQ(ddhgs("report " + run_->string() + " --out " + report.string(), &out), 0) << out;
+  const fs::path screenshot = test_output() / "report_cli_screenshot.png";
+  fs::remove(screenshot);
+  const fs::path profile = test::temp_dir("report_cli_chromium_profile");
+  int rc = test::run_command(
+      test::python() + " " + (test::source_dir() / "tests/app/report_browser_check.py").string() +
+          " " + chromium + " " + (report / "index.html").string() + " " + screenshot.string() +
+          " " + profile.string() + " 2>&1",
+      &out);
+  ASSERT_EQ(rc, 0) << out;
+  json checks = json::parse(last_line(out));
+  EXPECT_TRUE(checks["band_image_changed"].get<bool>()) << out;
+  EXPECT_TRUE(checks["spectrum_plot_changed"].get<bool>()) << out;
+  EXPECT_EQ(checks["spectrum_points_per_series"], json::array({kBands, kBands, kBands})) << out;
+  EXPECT_TRUE(checks["console_errors"].empty()) << out;
+  EXPECT_GT(io::read_image(screenshot).size(0), 500) << screenshot;
+  std::cout << "screenshot: " << screenshot.string() << "\n";
+}
+
+TEST_F(ReportCli, BadInputsGiveOneClearLineAndTouchNothing) {
+  std::string out;
+  EXPECT_EQ(ddhgs("report " + (*run_ / "no-such-run").string(), &out), 1);
+  EXPECT_TRUE(contains(last_line(out), "run folder")) << out;
+
+  // An --out folder that is not a report is never replaced.
+  fs::path precious = test::temp_dir("report_cli_precious");
+  io::write_file_atomically(precious / "notes.txt", "keep me");
+  EXPECT_EQ(ddhgs("report " + run_->string() + " --out " + precious.string(), &out), 1);
+  EXPECT_TRUE(contains(last_line(out), "not a ddhgs report")) << out;
+  EXPECT_EQ(io::read_file(precious / "notes.txt"), "keep me");
+
+  // A broken metrics.jsonl is named with its line.
+  fs::path broken = test::temp_dir("report_cli_broken_run");
+  for (const char* f : {"config.json", "gaussians.ply", "train_summary.json"})
+    fs::copy_file(*run_ / f, broken / f);
+  io::write_file_atomically(broken / "metrics.jsonl",
+                            "{\"iter\": 1, \"loss\": 0.5}\n{\"iter\": 2,\n");
+  EXPECT_EQ(ddhgs("report " + broken.string(), &out), 1);
+  EXPECT_TRUE(contains(last_line(out), "metrics.jsonl: line 2")) << out;
+  EXPECT_FALSE(fs::exists(broken / "report"));
+}
+
+}  // namespace
+}  // namespace ddhgs
