@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "error_text.h"
 #include "io/atomic_file.h"
 #include "io/colmap.h"
 #include "support/test_support.h"
@@ -84,19 +85,8 @@ void expect_same(const ColmapModel& a, const ColmapModel& b) {
   }
 }
 
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const core::Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-
-bool contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
+using test::contains;
+using test::error_of;
 
 TEST(Colmap, BinaryRoundTrip) {
   fs::path dir = test::temp_dir("colmap_bin");
@@ -272,6 +262,18 @@ TEST(Colmap, ImageWithoutCameraOrZeroQuaternion) {
   EXPECT_TRUE(contains(error_of([&] { colmap_camera(m, m.images[0]); }), "camera 99"));
   m.images[1].qvec = {0, 0, 0, 0};
   EXPECT_TRUE(contains(error_of([&] { colmap_camera(m, m.images[1]); }), "quaternion"));
+}
+
+TEST(Colmap, WritersRejectInconsistentModels) {
+  fs::path dir = test::temp_dir("colmap_write_bad");
+  ColmapModel m = sample_model();
+  m.cameras[1].params.pop_back();
+  EXPECT_TRUE(contains(error_of([&] { write_colmap_binary(dir / "a", m); }), "camera 1"));
+  m = sample_model();
+  m.images[1].point3d_ids.pop_back();
+  EXPECT_TRUE(contains(error_of([&] { write_colmap_text(dir / "b", m); }), "frame 1.png"));
+  EXPECT_FALSE(fs::exists(dir / "a"));
+  EXPECT_FALSE(fs::exists(dir / "b"));
 }
 
 TEST(Colmap, FindsModelFolders) {

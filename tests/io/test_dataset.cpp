@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "core/error.h"
+#include "error_text.h"
 #include "io/atomic_file.h"
 #include "io/colmap.h"
 #include "io/dataset.h"
@@ -60,19 +61,8 @@ void write_scene(const fs::path& root, const SceneSpec& spec) {
   write_transforms(root / "transforms.json", file);
 }
 
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const core::Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-
-bool contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
+using test::contains;
+using test::error_of;
 
 bool any_warning(const Scene& scene, const std::string& part) {
   for (const auto& w : scene.warnings)

@@ -1,0 +1,139 @@
+// `ddhgs info DIR`: what a dataset holds and what is wrong with it.
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <iostream>
+
+#include "app/registry.h"
+#include "io/dataset.h"
+#include "io/scene_report.h"
+
+namespace ddhgs::app {
+namespace {
+
+struct InfoArgs {
+  std::string dir;
+  int downscale = 1;
+  bool rgb = false;
+  bool json = false;
+};
+
+std::string human_bytes(size_t bytes) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  double v = double(bytes);
+  int u = 0;
+  while (v >= 1024 && u < 4) {
+    v /= 1024;
+    ++u;
+  }
+  char buf[32];
+  std::snprintf(buf, sizeof buf, u == 0 ? "%.0f %s" : "%.1f %s", v, units[u]);
+  return buf;
+}
+
+std::string nm(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r) {
+  nlohmann::json j;
+  j["root"] = scene.root.string();
+  j["layout"] = scene.layout;
+  j["views"] = scene.views.size();
+  j["train"] = scene.train.size();
+  j["test"] = scene.test.size();
+  j["width"] = r.width;
+  j["height"] = r.height;
+  j["mixed_sizes"] = r.mixed_sizes;
+  j["downscale"] = scene.options.downscale;
+  j["bands"] = scene.bands();
+  j["wavelengths_nm"] = scene.wavelengths_nm;
+  j["stored_type"] = io::to_string(scene.stored_type);
+  j["scale"] = scene.scale;
+  j["bytes_per_view"] = scene.view_bytes();
+  j["bytes_scene"] = r.scene_bytes;
+  j["bytes_per_view_float32"] = scene.view_bytes() / io::bytes_per_sample(scene.stored_type) * 4;
+  j["bytes_scene_float32"] = r.scene_bytes_f32;
+  j["points"] = r.points;
+  j["point_colors"] = r.point_colors;
+  j["point_spectra"] = r.point_spectra;
+  j["clean_views"] = r.clean_views;
+  j["distortion"] = r.distortion;
+  j["warnings"] = scene.warnings;
+  j["errors"] = r.errors;
+  return j;
+}
+
+void print_text(const io::Scene& scene, const io::SceneReport& r) {
+  std::ostream& out = std::cout;
+  size_t f32_view = scene.view_bytes() / io::bytes_per_sample(scene.stored_type) * 4;
+  out << "dataset     " << scene.root.string() << " (" << scene.layout << ")\n"
+      << "views       " << scene.views.size() << " (train " << scene.train.size() << ", test "
+      << scene.test.size() << ")\n"
+      << "resolution  " << r.width << " x " << r.height << " px"
+      << (r.mixed_sizes ? " (first view; sizes vary)" : "")
+      << (scene.options.downscale > 1 ? " at downscale " + std::to_string(scene.options.downscale)
+                                      : "")
+      << "\n"
+      << "bands       " << scene.bands() << ", " << nm(scene.wavelengths_nm.front()) << "-"
+      << nm(scene.wavelengths_nm.back()) << " nm\n"
+      << "stored as   " << io::to_string(scene.stored_type) << " (divided by " << nm(scene.scale)
+      << ")\n"
+      << "memory      " << human_bytes(scene.view_bytes()) << " per view, "
+      << human_bytes(r.scene_bytes) << " for the scene as stored; " << human_bytes(f32_view)
+      << " / " << human_bytes(r.scene_bytes_f32) << " as float32\n"
+      << "points      ";
+  if (r.points == 0)
+    out << "none (random initialisation)\n";
+  else
+    out << r.points
+        << (r.point_spectra  ? " with spectra"
+            : r.point_colors ? " with RGB colours"
+                             : " without colours")
+        << "\n";
+  out << "clean       "
+      << (r.clean_views ? std::to_string(r.clean_views) + " views with clean ground truth" : "none")
+      << "\n"
+      << "cameras     " << (r.distortion ? "with lens distortion (k1 k2 p1 p2)" : "pinhole")
+      << "\n";
+  if (scene.warnings.empty() && r.errors.empty()) {
+    out << "problems    none\n";
+    return;
+  }
+  out << "problems    " << r.errors.size() << " error(s), " << scene.warnings.size()
+      << " warning(s)\n";
+  for (const auto& e : r.errors) out << "  error: " << e << "\n";
+  for (const auto& w : scene.warnings) out << "  warning: " << w << "\n";
+}
+
+Action setup(CLI::App& parent) {
+  auto args = std::make_shared<InfoArgs>();
+  CLI::App* cmd = parent.add_subcommand(
+      "info", "Describe a dataset: views, split, bands, memory, points and problems");
+  cmd->add_option("dir", args->dir, "Dataset folder (transforms.json or COLMAP layout)")
+      ->required();
+  cmd->add_option("--downscale", args->downscale, "Describe the views at 1/d resolution")
+      ->check(CLI::PositiveNumber);
+  cmd->add_flag("--rgb", args->rgb, "Describe the RGB images instead of the cubes");
+  cmd->add_flag("--json", args->json, "Print one JSON object instead of text");
+  return [args] {
+    io::LoadOptions options;
+    options.downscale = args->downscale;
+    options.rgb = args->rgb;
+    auto scene = io::load_scene(args->dir, options);
+    io::SceneReport report = io::inspect_scene(*scene);
+    if (args->json)
+      std::cout << to_json(*scene, report).dump(2) << "\n";
+    else
+      print_text(*scene, report);
+    // Problems that would stop training make the exit status non-zero.
+    return report.errors.empty() ? 0 : 1;
+  };
+}
+
+Registrar registrar("info", 20, setup);
+
+}  // namespace
+}  // namespace ddhgs::app
