@@ -78,7 +78,8 @@ EvalReport evaluate(const io::Scene& scene, const model::Gaussians& gaussians,
                 "the model has " + std::to_string(gaussians.bands()) +
                     " bands but the dataset loads " + std::to_string(scene.bands()) +
                     " (band range or binning differs from training?)");
-  core::require(!views.empty(), scene.root, "the " + split_name + " split has no views");
+  core::require(!views.empty(), scene.root,
+                "the " + split_name + " split has no views (try --split train or all)");
   torch::NoGradGuard no_grad;
   EvalReport report;
   report.split = split_name;
@@ -148,9 +149,9 @@ void write_per_view_csv(const std::filesystem::path& path, const EvalReport& rep
 std::string format_report(const EvalReport& report) {
   std::ostringstream out;
   size_t views = report.per_view.size() / (report.mean_clean ? 2 : 1);
-  out << report.split << " split: " << views << " views, " << report.width << "x" << report.height
-      << " px, " << report.wavelengths_nm.size() << " bands, " << report.gaussians
-      << " Gaussians\n";
+  out << report.split << " split: " << views << (views == 1 ? " view, " : " views, ")
+      << report.width << "x" << report.height << " px, " << report.wavelengths_nm.size()
+      << " bands, " << report.gaussians << " Gaussians\n";
   out << "  truth    PSNR dB     SSIM  SAM rad     RMSE\n";
   auto row = [&](const char* name, const ImageMetrics& m) {
     char buf[128];

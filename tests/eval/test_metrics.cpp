@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "eval/metrics.h"
+#include "model/ssim.h"
 #include "support/test_support.h"
 
 namespace ddhgs::eval {
@@ -105,6 +106,17 @@ TEST(Metrics, SsimIsSymmetricAndAveragesBands) {
   std::vector<double> mixed = band_ssim(a, c);
   EXPECT_NEAR(mixed[1], 1.0, 1e-12);
   EXPECT_NEAR(mixed[0], bands[0], 1e-12);
+}
+
+TEST(Metrics, SsimAgreesWithTheTrainingLoss) {
+  // model::ssim (float, differentiable, used by the loss) and this double
+  // evaluation metric share one definition.
+  torch::manual_seed(11);
+  torch::Tensor a = torch::rand({19, 23, 4}), b = (a + 0.1 * torch::randn({19, 23, 4})).clamp(0, 1);
+  EXPECT_NEAR(ssim(a, b), model::ssim(a, b).item<double>(), 1e-5);
+  std::vector<double> bands = band_ssim(a, b);
+  torch::Tensor loss_bands = model::ssim(a, b, true);
+  for (int64_t i = 0; i < 4; ++i) EXPECT_NEAR(bands[size_t(i)], loss_bands[i].item<double>(), 1e-5);
 }
 
 TEST(Metrics, BadInputThrowsOneLineError) {
