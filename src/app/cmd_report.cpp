@@ -1,7 +1,7 @@
 // `ddhgs report RUN`: a self-contained HTML report of a trained run (metrics,
 // curves, per-band quality, pictures and a spectral viewer).
+#include <cstdio>
 #include <filesystem>
-#include <iostream>
 
 #include "app/registry.h"
 #include "app/trained_run.h"
@@ -19,7 +19,8 @@ struct ReportArgs {
   std::string out;
   std::string data;
   int views = 4;
-  int viewer_px = 256;
+  int viewer_views = 2;
+  int viewer_px = 192;
   double diff_max = 0.1;
 };
 
@@ -42,7 +43,12 @@ Action setup(CLI::App& parent) {
   cmd->add_option("run", args->run, "Run folder written by ddhgs train")->required();
   cmd->add_option("--out", args->out, "Report folder (default RUN/report); replaced if it exists");
   cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
-  cmd->add_option("--views", args->views, "Test views shown as pictures and in the viewer")
+  cmd->add_option("--views", args->views, "Test views shown as pictures")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--viewer-views", args->viewer_views,
+                  "Test views in the spectral viewer (each adds every band as images, MBs for "
+                  "100+ bands)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_option("--viewer-px", args->viewer_px,
@@ -66,11 +72,15 @@ Action setup(CLI::App& parent) {
     eval::ReportOptions options;
     options.out_dir = args->out.empty() ? run.root / "report" : fs::path(args->out);
     options.max_views = args->views;
+    options.viewer_views = args->viewer_views;
     options.viewer_max_px = args->viewer_px;
     options.diff_max = args->diff_max;
     fs::path index =
         eval::write_report(*run.scene, run.gaussians, run.background, records, options);
-    std::cout << "report: " << index.string() << "\n";
+    uintmax_t bytes = 0;
+    for (const auto& entry : fs::recursive_directory_iterator(index.parent_path()))
+      if (entry.is_regular_file()) bytes += entry.file_size();
+    std::printf("report: %s (%.1f MB)\n", index.string().c_str(), double(bytes) / 1e6);
     return 0;
   };
 }

@@ -219,9 +219,9 @@ void build_report(const fs::path& stage, const io::Scene& scene, const model::Ga
       clean.per_view.push_back(compute_metrics(render, clean_truth));
       clean.band_rmse.push_back(band_rmse(render, clean_truth));
     }
+    const std::string name = scene.views[size_t(v)].name;
+    const std::string file = safe_name(name);
     if (int(i) < options.max_views) {
-      const std::string name = scene.views[size_t(v)].name;
-      const std::string file = safe_name(name);
       const torch::Tensor& truth = clean_truth.defined() ? clean_truth : captured;
       json files;
       for (const BandSelection& s : selections) {
@@ -230,6 +230,8 @@ void build_report(const fs::path& stage, const io::Scene& scene, const model::Ga
         files[s.label] = rel;
       }
       figure_views.push_back({{"name", name}, {"files", files}});
+    }
+    if (int(i) < options.viewer_views) {
       std::vector<std::pair<std::string, torch::Tensor>> cubes = {{"render", render},
                                                                   {"views", captured}};
       if (clean_truth.defined()) cubes.emplace_back("clean", clean_truth);

@@ -27,8 +27,12 @@ struct RunRecords {
 
 struct ReportOptions {
   std::filesystem::path out_dir;
-  int max_views = 4;        // test views shown as pictures and in the viewer
-  int viewer_max_px = 256;  // longer side of the viewer's band images, pixels
+  int max_views = 4;  // test views shown as pictures
+  // Test views in the spectral viewer. Each carries every band of the render
+  // and of the ground truth as 8-bit images, about 2 x N x 192 x 192 bytes
+  // before PNG compression (~10 MB for 141 bands), so the default is small.
+  int viewer_views = 2;
+  int viewer_max_px = 192;  // longer side of the viewer's band images, pixels
   double diff_max = 0.1;    // reflectance error at the top of the heatmap colour map
 };
 

@@ -148,6 +148,17 @@ TEST_F(ReportCli, WritesSelfContainedReportThatAgreesWithTheRun) {
   for (const auto& entry : fs::recursive_directory_iterator(report))
     if (entry.is_regular_file()) bytes += entry.file_size();
   EXPECT_LT(bytes, 1u << 20) << "a tiny run's report should stay small";
+
+  // --viewer-px area-averages the viewer's bands down (40 x 30 -> 20 x 15);
+  // rerunning replaces the earlier report.
+  const fs::path small = *run_ / "small_report";
+  for (int repeat = 0; repeat < 2; ++repeat)
+    ASSERT_EQ(
+        ddhgs("report " + run_->string() + " --out " + small.string() + " --viewer-px 20", &out), 0)
+        << out;
+  viewer = read_report_data(small)["viewer"]["views"][0];
+  EXPECT_EQ(viewer["width"], 20);
+  EXPECT_EQ(viewer["height"], 15);
 }
 
 TEST_F(ReportCli, OpensInHeadlessChromiumAndRespondsToSliderAndClick) {
