@@ -154,7 +154,9 @@ def run(chromium, index, screenshot, profile):
             "Emulation.setDeviceMetricsOverride",
             {"width": 1280, "height": 2000, "deviceScaleFactor": 1, "mobile": False},
         )
-        dt.send("Page.navigate", {"url": pathlib.Path(index).resolve().as_uri()})
+        nav = dt.send("Page.navigate", {"url": pathlib.Path(index).resolve().as_uri()})
+        if nav.get("errorText"):
+            raise RuntimeError("cannot open %s: %s" % (index, nav["errorText"]))
         dt.wait_for("window.ddhgsReady === true", "the report to finish building")
         checks["bands"] = dt.evaluate("window.DDHGS_REPORT.wavelengths_nm.length")
 
