@@ -1,0 +1,114 @@
+// `ddhgs info` run as a user would: text, JSON, problems and exit codes.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <limits>
+
+#include "io/atomic_file.h"
+#include "io/cube.h"
+#include "io/transforms.h"
+#include "support/test_support.h"
+
+namespace ddhgs {
+namespace {
+namespace fs = std::filesystem;
+
+// 6 views of 8 x 6 pixels, 5 bands (450-650 nm), uint8, plus clean/ copies.
+fs::path make_scene(const std::string& name) {
+  fs::path root = test::temp_dir(name);
+  fs::create_directories(root / "cubes");
+  fs::create_directories(root / "clean");
+  io::TransformsFile file;
+  file.wavelengths_nm = {450, 500, 550, 600, 650};
+  for (int i = 0; i < 6; ++i) {
+    io::TransformsFrame f;
+    f.hyperspectral_file_path = "cubes/v" + std::to_string(i) + ".npy";
+    f.intrinsics.fx = f.intrinsics.fy = 12;
+    f.intrinsics.cx = 4;
+    f.intrinsics.cy = 3;
+    f.intrinsics.width = 8;
+    f.intrinsics.height = 6;
+    f.camera_to_world_gl =
+        core::opencv_w2c_to_opengl_c2w(core::look_at({2.0 + i, 1, 1}, {0, 0, 0}, {0, 0, 1}));
+    torch::Tensor cube = torch::full({6, 8, 5}, 10 * i, torch::kUInt8);
+    io::write_npy(root / f.hyperspectral_file_path, cube);
+    io::write_npy(root / "clean" / ("v" + std::to_string(i) + ".npy"), cube);
+    file.frames.push_back(f);
+  }
+  io::write_transforms(root / "transforms.json", file);
+  return root;
+}
+
+int info(const std::string& args, std::string* out) {
+  return test::run_command(test::ddhgs_binary() + " info " + args, out);
+}
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(InfoCli, DescribesAHealthyScene) {
+  fs::path root = make_scene("info_ok");
+  std::string out;
+  ASSERT_EQ(info(root.string(), &out), 0) << out;
+  EXPECT_TRUE(contains(out, "views       6 (train 6, test 0)")) << out;
+  EXPECT_TRUE(contains(out, "8 x 6 px")) << out;
+  EXPECT_TRUE(contains(out, "bands       5, 450-650 nm")) << out;
+  EXPECT_TRUE(contains(out, "stored as   uint8")) << out;
+  // 8 x 6 x 5 bytes per view, 6 views; 4x that as float32.
+  EXPECT_TRUE(contains(out, "240 B per view, 1.4 KiB for the scene as stored; 960 B / 5.6 KiB"))
+      << out;
+  EXPECT_TRUE(contains(out, "6 views with clean ground truth")) << out;
+  EXPECT_TRUE(contains(out, "problems    none")) << out;
+}
+
+TEST(InfoCli, JsonAtDownscale) {
+  fs::path root = make_scene("info_json");
+  std::string out;
+  ASSERT_EQ(info(root.string() + " --downscale 2 --json 2>/dev/null", &out), 0) << out;
+  nlohmann::json j = nlohmann::json::parse(out);
+  EXPECT_EQ(j["views"], 6);
+  EXPECT_EQ(j["width"], 4);
+  EXPECT_EQ(j["height"], 3);
+  EXPECT_EQ(j["bands"], 5);
+  EXPECT_EQ(j["stored_type"], "uint8");
+  EXPECT_EQ(j["bytes_per_view"], 4 * 3 * 5);
+  EXPECT_EQ(j["bytes_scene_float32"], 6 * 4 * 3 * 5 * 4);
+  EXPECT_EQ(j["points"], 0);
+  EXPECT_EQ(j["clean_views"], 6);
+  EXPECT_TRUE(j["errors"].empty());
+}
+
+TEST(InfoCli, ListsEveryProblem) {
+  fs::path root = make_scene("info_bad");
+  fs::remove(root / "cubes" / "v1.npy");
+  io::write_npy(root / "cubes" / "v4.npy", torch::zeros({6, 8, 7}, torch::kUInt8));
+  torch::Tensor nan_cube = torch::zeros({6, 8, 5});
+  nan_cube[2][3][1] = std::numeric_limits<float>::quiet_NaN();
+  io::write_npy(root / "clean" / "v5.npy", nan_cube);
+  io::write_npy(root / "cubes" / "v5.npy", nan_cube.to(torch::kFloat16));
+  std::string out;
+  EXPECT_EQ(info(root.string(), &out), 1) << out;
+  EXPECT_TRUE(contains(out, "views       5")) << out;
+  EXPECT_TRUE(contains(out, "warning: frames[1]: missing file")) << out;
+  EXPECT_TRUE(contains(out, "v4.npy: has 7 bands, expected 5")) << out;
+  EXPECT_TRUE(contains(out, "v5.npy")) << out;
+  EXPECT_TRUE(contains(out, "NaN")) << out;
+}
+
+TEST(InfoCli, BadInputExitsWithOneLine) {
+  fs::path root = test::temp_dir("info_none");
+  std::string out;
+  EXPECT_EQ(info(root.string(), &out), 1);
+  EXPECT_TRUE(contains(out, "error: " + root.string() + ": expected transforms.json")) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+
+  io::write_file_atomically(root / "transforms.json", "{\"frames\": 3}");
+  EXPECT_EQ(info(root.string(), &out), 1);
+  EXPECT_TRUE(contains(out, "transforms.json: frames: expected an array")) << out;
+}
+
+}  // namespace
+}  // namespace ddhgs
