@@ -359,7 +359,10 @@ void PlantScene::shade(const Ray& ray, double t, int kind, int index, SurfaceHit
       break;
     }
     case kSoilKind:
-      hit->mix = float(smoothstep(0.3, 0.7, value_noise(p * 30.0, seed ^ 0x5011ull)));
+      // Two octaves hide the lattice of a single value-noise octave.
+      hit->mix = float(smoothstep(0.3, 0.7,
+                                  0.6 * value_noise(p * 30.0, seed ^ 0x5011ull) +
+                                      0.4 * value_noise(p * 71.0, seed ^ 0x5012ull)));
       hit->material_a = kSoilDry;
       hit->material_b = kSoilWet;
       hit->specular = 0;
