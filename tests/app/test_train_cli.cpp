@@ -14,11 +14,11 @@ namespace ddhgs {
 namespace {
 namespace fs = std::filesystem;
 
-// Densification compressed into a 300-iteration run.
+// Densification compressed into a 200-iteration run.
 const std::string kSchedule =
-    " --preset demo --threads 2 --set densify.from_iter=50 --set densify.every=50"
-    " --set densify.until_iter=250 --set densify.opacity_reset_every=150"
-    " --set model.sh_degree_every=100 --set optim.means_lr_max_steps=300 --checkpoint-every 100";
+    " --preset demo --threads 2 --set densify.from_iter=30 --set densify.every=30"
+    " --set densify.until_iter=170 --set densify.opacity_reset_every=100"
+    " --set model.sh_degree_every=60 --set optim.means_lr_max_steps=200 --checkpoint-every 100";
 
 const fs::path& scene() {
   static const fs::path dir = [] {
@@ -55,16 +55,16 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
   std::string out;
   const fs::path straight = runs / "straight";
   ASSERT_EQ(
-      train(scene().string() + " --out " + straight.string() + " --iterations 300" + kSchedule,
+      train(scene().string() + " --out " + straight.string() + " --iterations 200" + kSchedule,
             &out),
       0)
       << out;
   for (const char* f : {"config.json", "gaussians.ply", "checkpoint.pt", "metrics.jsonl",
-                        "train_summary.json", "checkpoints/ckpt_100.pt", "checkpoints/ckpt_300.pt"})
+                        "train_summary.json", "checkpoints/ckpt_100.pt", "checkpoints/ckpt_200.pt"})
     EXPECT_TRUE(fs::exists(straight / f)) << f;
 
   auto summary = read_json(straight / "train_summary.json");
-  EXPECT_EQ(summary["iterations"], 300);
+  EXPECT_EQ(summary["iterations"], 200);
   EXPECT_EQ(summary["bands"], 8);
   EXPECT_EQ(summary["bytes_per_gaussian"], (11 + 8 * 16) * 16);
   // Fixed bars, far below what the run reaches but far above an untrained model.
@@ -73,7 +73,7 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
 
   auto metrics = read_metrics(straight / "metrics.jsonl");
   ASSERT_FALSE(metrics.empty());
-  EXPECT_EQ(metrics.back()["iter"], 300);
+  EXPECT_EQ(metrics.back()["iter"], 200);
   EXPECT_GT(metrics.back()["densify_added"].get<int>(), 0);
   EXPECT_GT(metrics.back()["densify_removed"].get<int>(), 0);
   EXPECT_GT(metrics.back()["train_psnr"].get<double>(),
@@ -84,13 +84,13 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
   EXPECT_EQ(config["data"]["path"], fs::absolute(scene()).lexically_normal().string());
   EXPECT_EQ(config["densify"]["every"], 50);
 
-  // 150 iterations, then resume to 300: the same bytes as the straight run.
+  // 100 iterations, then resume to 200: the same bytes as the straight run.
   const fs::path split = runs / "split";
   ASSERT_EQ(
-      train(scene().string() + " --out " + split.string() + " --iterations 150" + kSchedule, &out),
+      train(scene().string() + " --out " + split.string() + " --iterations 100" + kSchedule, &out),
       0)
       << out;
-  ASSERT_EQ(train("--threads 2 --resume " + split.string() + " --iterations 300", &out), 0) << out;
+  ASSERT_EQ(train("--threads 2 --resume " + split.string() + " --iterations 200", &out), 0) << out;
   EXPECT_EQ(io::read_file(split / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
   auto resumed = read_metrics(split / "metrics.jsonl");
   ASSERT_EQ(resumed.size(), metrics.size());
