@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "render/channel_kernels.h"
+#include "render/recycle.h"
 #include "render/splat_row.h"
 
 namespace ddhgs::render {
@@ -78,6 +79,7 @@ struct TileScratch {
   uint8_t gpix[kChunk * kPixels];
   float gweight[kChunk * kPixels];
   const float* col_rows[kChunk];   // colour row of each chunk Gaussian
+  float depth[kChunk];             // camera z of each chunk Gaussian
   const float* pix_rows[kPixels];  // row of acc for each pixel
   std::vector<float> acc;          // [kPixels, np] colour sums (forward) or dL/dimage (backward)
   uint8_t touched[kPixels];        // forward: acc row holds a sum (rows are not zeroed up front)
@@ -97,15 +99,17 @@ struct TileScratch {
 };
 
 // Tile lists jump through the rank-ordered arrays (a tile holds a small
-// fraction of all Gaussians), so the next chunk's splats and colour rows are
-// requested while the current chunk is blended.
-void prefetch_chunk(const Ranked& ranked, const int32_t* ranks, int m, int np) {
+// fraction of all Gaussians), so the next chunk's splat records are requested
+// while the current chunk is blended. Colour rows are requested only for
+// Gaussians that blend at least one pixel (see blend_chunk): most of a tile's
+// list misses its pixels, and prefetching every row stalls on fill buffers.
+void prefetch_splats(const Ranked& ranked, const int32_t* ranks, int m) {
+  for (int k = 0; k < m; ++k) __builtin_prefetch(&ranked.splats[ranks[k]]);
+}
+
+void prefetch_row(const float* row, int np) {
   constexpr int kLineFloats = 16;  // 64-byte cache lines
-  for (int k = 0; k < m; ++k) {
-    __builtin_prefetch(&ranked.splats[ranks[k]]);
-    const float* row = ranked.colors.data() + size_t(ranks[k]) * np;
-    for (int c = 0; c < np; c += kLineFloats) __builtin_prefetch(row + c);
-  }
+  for (int c = 0; c < np; c += kLineFloats) __builtin_prefetch(row + c);
 }
 
 TileScratch& scratch() {
@@ -117,7 +121,7 @@ TileScratch& scratch() {
 }
 
 // The 3DGS per-pixel recurrence for one chunk of depth ranks, Gaussian-major
-// over each splat's clipped bounding box. One function for forward and
+// over each splat's ellipse, row span by row span. One function for forward and
 // backward, so the backward replays exactly the same float operations.
 void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int np,
                  bool gaussian_lists) {
@@ -126,19 +130,34 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
     const Splat& g = ranked.splats[ranks[k]];
     s.col_rows[k] = ranked.colors.data() + size_t(ranks[k]) * np;
     s.gcount[k] = 0;
+    s.depth[k] = g.depth;
     if (g.ext_x < 0) continue;
-    auto clip = [](float v, int lo, int hi) { return int(v < lo ? lo : v > hi ? hi : v); };
+    bool hit = false;
+    auto clip = [](double v, int lo, int hi) { return int(v < lo ? lo : v > hi ? hi : v); };
     // Pixel x has its centre at x + 0.5.
     const int xa = clip(std::floor(g.mx - g.ext_x - 0.5f), s.x0, s.x1);
     const int xb = clip(std::ceil(g.mx + g.ext_x - 0.5f) + 1, s.x0, s.x1);
     const int ya = clip(std::floor(g.my - g.ext_y - 0.5f), s.y0, s.y1);
     const int yb = clip(std::ceil(g.my + g.ext_y - 0.5f) + 1, s.y0, s.y1);
+    // The conic needs its reciprocal only once per Gaussian for the row spans.
+    const double inv_a = 1.0 / double(g.a);
+    const double span_power = double(g.skip_power) + 1e-3;
     for (int y = ya; y < yb; ++y) {
       const float dy = g.my - (float(y) + 0.5f);
+      // Row span where power <= skip_power: the roots in dx of
+      // 0.5 a dx^2 + b dy dx + 0.5 c dy^2 - skip_power, widened by a pixel so
+      // the exact per-pixel test below, not float rounding here, decides.
+      const double bdy = double(g.b) * dy;
+      const double disc = bdy * bdy - double(g.a) * (double(g.c) * dy * dy - 2 * span_power);
+      if (disc < 0) continue;
+      const double root = std::sqrt(disc);
+      const double centre = double(g.mx) - 0.5 + bdy * inv_a;  // pixel x at dx = -b dy / a
+      const int xr0 = clip(std::floor(centre - root * inv_a) - 1, xa, xb);
+      const int xr1 = clip(std::ceil(centre + root * inv_a) + 2, xa, xb);
       const int row = s.pixel(0, y);
-      for (int x = xa; x < xb; x += kRowLanes) {
+      for (int x = xr0; x < xr1; x += kRowLanes) {
         float raw8[kRowLanes];
-        unsigned lanes = splat_row(g, x, std::min(kRowLanes, xb - x), dy, s.done + row + x, raw8);
+        unsigned lanes = splat_row(g, x, std::min(kRowLanes, xr1 - x), dy, s.done + row + x, raw8);
         while (lanes) {
           const int i = __builtin_ctz(lanes);
           lanes &= lanes - 1;
@@ -155,10 +174,11 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
           const int j = p * kChunk + s.count[p]++;
           s.gauss[j] = uint8_t(k);
           s.weight[j] = alpha * t;
-          s.raw[j] = raw;
-          s.trans[j] = t;
           s.T[p] = next;
-          if (gaussian_lists) {
+          hit = true;
+          if (gaussian_lists) {  // backward-only per-pair state
+            s.raw[j] = raw;
+            s.trans[j] = t;
             const int q = k * kPixels + s.gcount[k]++;
             s.gpix[q] = uint8_t(p);
             s.gweight[q] = alpha * t;
@@ -166,6 +186,7 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
         }
       }
     }
+    if (hit) prefetch_row(s.col_rows[k], np);
   }
 }
 
@@ -177,7 +198,8 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
   const int64_t n = colors.size(1);
   const int np = kernels::padded_channels(n);
   BlendForward out;
-  out.image = torch::empty({height, width, n}, torch::kFloat32);
+  thread_local c10::Storage image_cache;
+  out.image = recycled_empty(image_cache, {height, width, n});
   out.alpha = torch::empty({height, width}, torch::kFloat32);
   out.depth = torch::empty({height, width}, torch::kFloat32);
   if (keep_final_T) out.final_T = torch::empty({height, width}, torch::kFloat32);
@@ -201,7 +223,7 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
         const int32_t* ranks = bins.ranks.data() + b;
         const int m = std::min<int32_t>(kChunk, end - b);
         if (b + kChunk < end)
-          prefetch_chunk(ranked, ranks + kChunk, std::min<int32_t>(kChunk, end - b - kChunk), np);
+          prefetch_splats(ranked, ranks + kChunk, std::min<int32_t>(kChunk, end - b - kChunk));
         blend_chunk(s, ranked, ranks, m, np, false);
         for (int p = 0; p < kPixels; ++p) {
           const int c = s.count[p];
@@ -211,8 +233,7 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
           kernels::gather_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, s.gauss + j0,
                                s.weight + j0, c, s.touched[p]);
           s.touched[p] = 1;
-          for (int j = 0; j < c; ++j)
-            dsum[p] += s.weight[j0 + j] * ranked.splats[ranks[s.gauss[j0 + j]]].depth;
+          for (int j = 0; j < c; ++j) dsum[p] += s.weight[j0 + j] * s.depth[s.gauss[j0 + j]];
         }
       }
       for (int y = s.y0; y < s.y1; ++y)
@@ -304,7 +325,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
         const int32_t* ranks = bins.ranks.data() + b;
         const int m = std::min<int32_t>(kChunk, end - b);
         if (b + kChunk < end)
-          prefetch_chunk(ranked, ranks + kChunk, std::min<int32_t>(kChunk, end - b - kChunk), np);
+          prefetch_splats(ranked, ranks + kChunk, std::min<int32_t>(kChunk, end - b - kChunk));
         blend_chunk(s, ranked, ranks, m, np, true);
         // dL/dcolors = W^T dL/dimage, Gaussian-major with register accumulators.
         for (int k = 0; k < m; ++k) {
@@ -350,7 +371,8 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
   }
 
   // Sum the lists in a fixed order and scatter ranks back to Gaussian order.
-  torch::Tensor d_colors = torch::zeros({count, n}, torch::kFloat32);
+  thread_local c10::Storage d_colors_cache;
+  torch::Tensor d_colors = recycled_empty(d_colors_cache, {count, n}).zero_();
   torch::Tensor d_geo = torch::zeros({count, kSlots}, torch::kFloat32);
   torch::Tensor d_bg = torch::zeros({n}, torch::kFloat32);
   float* dcol = d_colors.data_ptr<float>();
