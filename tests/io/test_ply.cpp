@@ -2,6 +2,7 @@
 // independently by Python/numpy, and malformed files.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -280,43 +281,35 @@ TEST(Ply, MalformedFilesGiveOneLineErrorsNamingTheFile) {
   gaussian_case("truncated.ply", bytes.substr(0, bytes.size() - 10), "truncated");
   gaussian_case("header_only.ply", bytes.substr(0, header_end - 11), "end_header");
   gaussian_case("magic.ply", "plx" + bytes.substr(3), "not a PLY file");
-  gaussian_case("count.ply", replaced("element vertex 5", "element vertex 500000000000"),
-                "truncated");
-  gaussian_case("no_opacity.ply", replaced("property float opacity", "property float opaque"),
-                "'opacity'");
-  gaussian_case("rest.ply", replaced("property float f_rest_5\n", "property float unused\n"),
-                "5 f_rest_* properties for 2 bands");
-  gaussian_case("dc_gap.ply", replaced("property float f_dc_1\n", "property float f_dc_7\n"),
-                "f_dc_1 is missing");
-  gaussian_case("wavelengths.ply", replaced("comment wavelengths 400.5", "comment wavelengths"),
-                "lists 1 values");
-  gaussian_case("format.ply", replaced("binary_little_endian", "binary_middle_endian"),
-                "unknown format");
-  gaussian_case("type.ply", replaced("property float x", "property float16 x"), "unknown type");
+  // Header edits of the good file: {file, text replaced, replacement, expected message}.
+  const std::vector<std::array<std::string, 4>> edits = {
+      {"count.ply", "element vertex 5", "element vertex 500000000000", "truncated"},
+      {"no_opacity.ply", "property float opacity", "property float opaque", "'opacity'"},
+      {"rest.ply", "property float f_rest_5\n", "property float unused\n",
+       "5 f_rest_* properties for 2 bands"},
+      {"dc_gap.ply", "property float f_dc_1\n", "property float f_dc_7\n", "f_dc_1 is missing"},
+      {"wavelengths.ply", "comment wavelengths 400.5", "comment wavelengths", "lists 1 values"},
+      {"format.ply", "binary_little_endian", "binary_middle_endian", "unknown format"},
+      {"type.ply", "property float x", "property float16 x", "unknown type"},
+  };
+  for (const auto& [name, from, to, fragment] : edits)
+    gaussian_case(name, replaced(from, to), fragment);
   std::string nan = bytes;
   const float not_a_number = std::nanf("");
   std::memcpy(&nan[header_end + 4], &not_a_number, 4);  // y of Gaussian 0
   gaussian_case("nan.ply", nan, "'y' of vertex 0 is not a finite number");
-  gaussian_case("ascii.ply",
-                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
-                "property float z\nproperty float f_dc_0\nproperty float opacity\n"
-                "property float scale_0\nproperty float scale_1\nproperty float scale_2\n"
-                "property float rot_0\nproperty float rot_1\nproperty float rot_2\n"
-                "property float rot_3\nend_header\n1 2 3 4 5 6 7 8 9 1O 11 12\n",
-                "not a number");
-  gaussian_case("ascii_short.ply",
-                "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
-                "property float z\nproperty float f_dc_0\nproperty float opacity\n"
-                "property float scale_0\nproperty float scale_1\nproperty float scale_2\n"
-                "property float rot_0\nproperty float rot_1\nproperty float rot_2\n"
-                "property float rot_3\nend_header\n1 2 3 4 5 6 7 8 9 10 11 12\n1 2 3\n",
+  // A minimal ASCII Gaussian file (12 properties) with `count` vertices.
+  auto ascii_file = [](int count, const std::string& body) {
+    std::string header = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(count) + "\n";
+    for (const char* name : {"x", "y", "z", "f_dc_0", "opacity", "scale_0", "scale_1", "scale_2",
+                             "rot_0", "rot_1", "rot_2", "rot_3"})
+      header += std::string("property float ") + name + "\n";
+    return header + "end_header\n" + body;
+  };
+  gaussian_case("ascii.ply", ascii_file(1, "1 2 3 4 5 6 7 8 9 1O 11 12\n"), "not a number");
+  gaussian_case("ascii_short.ply", ascii_file(2, "1 2 3 4 5 6 7 8 9 10 11 12\n1 2 3\n"),
                 "truncated");
-  gaussian_case("ascii_count.ply",
-                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
-                "property float z\nproperty float f_dc_0\nproperty float opacity\n"
-                "property float scale_0\nproperty float scale_1\nproperty float scale_2\n"
-                "property float rot_0\nproperty float rot_1\nproperty float rot_2\n"
-                "property float rot_3\nend_header\n1 2 3 4 5 6 7 8 9 10 11.25\n",
+  gaussian_case("ascii_count.ply", ascii_file(1, "1 2 3 4 5 6 7 8 9 10 11.25\n"),
                 "has 11 values, expected 12");
   expect_error_naming(
       dir / "missing.ply", [&] { read_gaussian_ply(dir / "missing.ply"); }, "not found");
