@@ -111,6 +111,26 @@ inline void gather_dot(const float* x, const float* const* rows, int n, const ui
   over_blocks<DotOp>(n, x, rows, idx, count, out);
 }
 
+// dst[0, n) = acc[0, n) + t * bg[0, n) (acc may be null: zeros). The image
+// is written once and not read again by this pass, so whole-vector rows go
+// to memory with streaming stores, skipping the read-for-ownership of each
+// destination line. Call end_streaming_writes() before other threads read.
+inline void write_pixel(float* dst, const float* acc, float t, const float* bg, int64_t n) {
+  if (n % kLanes == 0 && reinterpret_cast<uintptr_t>(dst) % 32 == 0) {
+    const __m256 tv = _mm256_set1_ps(t);
+    for (int64_t c = 0; c < n; c += kLanes) {
+      const __m256 b = _mm256_mul_ps(tv, _mm256_loadu_ps(bg + c));
+      _mm256_stream_ps(dst + c, acc ? _mm256_add_ps(_mm256_loadu_ps(acc + c), b) : b);
+    }
+    return;
+  }
+  for (int64_t c = 0; c < n; ++c) dst[c] = (acc ? acc[c] : 0.0f) + t * bg[c];
+}
+
+inline void end_streaming_writes() {
+  _mm_sfence();
+}
+
 #else  // portable fallback: the compiler vectorises the inner loops it can
 
 inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8_t* idx,
@@ -131,6 +151,12 @@ inline void gather_dot(const float* x, const float* const* rows, int n, const ui
     out[j] += s;
   }
 }
+
+inline void write_pixel(float* dst, const float* acc, float t, const float* bg, int64_t n) {
+  for (int64_t c = 0; c < n; ++c) dst[c] = (acc ? acc[c] : 0.0f) + t * bg[c];
+}
+
+inline void end_streaming_writes() {}
 
 #endif
 
