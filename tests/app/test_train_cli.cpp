@@ -16,7 +16,7 @@ namespace fs = std::filesystem;
 
 // Densification compressed into a 200-iteration run.
 const std::string kSchedule =
-    " --preset demo --threads 2 --set densify.from_iter=30 --set densify.every=30"
+    " --preset demo --set densify.from_iter=30 --set densify.every=30"
     " --set densify.until_iter=170 --set densify.opacity_reset_every=100"
     " --set model.sh_degree_every=60 --set optim.means_lr_max_steps=200 --checkpoint-every 100";
 
@@ -90,7 +90,7 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
       train(scene().string() + " --out " + split.string() + " --iterations 100" + kSchedule, &out),
       0)
       << out;
-  ASSERT_EQ(train("--threads 2 --resume " + split.string() + " --iterations 200", &out), 0) << out;
+  ASSERT_EQ(train("--resume " + split.string() + " --iterations 200", &out), 0) << out;
   EXPECT_EQ(io::read_file(split / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
   auto resumed = read_metrics(split / "metrics.jsonl");
   ASSERT_EQ(resumed.size(), metrics.size());
