@@ -321,14 +321,9 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
           std::fill(row + n, row + np, 0.0f);  // padding meets zero colour padding
           tf[p] = final_T[o];
           dd[p] = ddepth ? ddepth[o] : 0.0f;
-          double tot = double(dd[p]) * dep[o], dt = dalpha ? -double(dalpha[o]) : 0.0;
-          for (int64_t c = 0; c < n; ++c) {
-            tot += double(dc[c]) * (img[o * n + c] - tf[p] * bg[c]);
-            dt += double(dc[c]) * bg[c];
-            gbg[c] += tf[p] * dc[c];
-          }
-          total[p] = tot;
-          dtf[p] = float(dt);
+          const kernels::PixelSums sums = kernels::pixel_sums(dc, img + o * n, tf[p], bg, n, gbg);
+          total[p] = double(dd[p]) * dep[o] + sums.dot_image;
+          dtf[p] = float((dalpha ? -double(dalpha[o]) : 0.0) + sums.dot_background);
         }
       const int32_t end = bins.offsets[tile + 1];
       for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {

@@ -18,7 +18,42 @@ inline int padded_channels(int64_t n) {
   return int((n + kLanes - 1) / kLanes * kLanes);
 }
 
+// Per-pixel sums the backward starts from, in double (they are later
+// differenced against running prefixes): sum_c d[c] (image[c] - t bg[c]) and
+// sum_c d[c] bg[c]; also adds t d[c] to the background gradient gbg[c].
+struct PixelSums {
+  double dot_image, dot_background;
+};
+
 #if defined(__AVX2__) && defined(__FMA__)
+
+inline double horizontal_sum(__m256d v) {
+  const __m128d h = _mm_add_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
+  return _mm_cvtsd_f64(_mm_add_sd(h, _mm_unpackhi_pd(h, h)));
+}
+
+inline PixelSums pixel_sums(const float* d, const float* image, float t, const float* bg, int64_t n,
+                            float* gbg) {
+  constexpr int kDoubles = 4;
+  const __m256 tv = _mm256_set1_ps(t);
+  __m256d di = _mm256_setzero_pd(), db = _mm256_setzero_pd();
+  int64_t c = 0;
+  for (; c + kDoubles <= n; c += kDoubles) {
+    const __m128 d4 = _mm_loadu_ps(d + c), bg4 = _mm_loadu_ps(bg + c);
+    const __m128 rest = _mm_fnmadd_ps(_mm256_castps256_ps128(tv), bg4, _mm_loadu_ps(image + c));
+    const __m256d dd = _mm256_cvtps_pd(d4);
+    di = _mm256_fmadd_pd(dd, _mm256_cvtps_pd(rest), di);
+    db = _mm256_fmadd_pd(dd, _mm256_cvtps_pd(bg4), db);
+    _mm_storeu_ps(gbg + c, _mm_fmadd_ps(_mm256_castps256_ps128(tv), d4, _mm_loadu_ps(gbg + c)));
+  }
+  PixelSums s{horizontal_sum(di), horizontal_sum(db)};
+  for (; c < n; ++c) {
+    s.dot_image += double(d[c]) * (image[c] - t * bg[c]);
+    s.dot_background += double(d[c]) * bg[c];
+    gbg[c] += t * d[c];
+  }
+  return s;
+}
 
 template <int V>
 inline void gather_axpy_block(float* acc, const float* const* rows, int c, const uint8_t* idx,
@@ -157,6 +192,17 @@ inline void write_pixel(float* dst, const float* acc, float t, const float* bg, 
 }
 
 inline void end_streaming_writes() {}
+
+inline PixelSums pixel_sums(const float* d, const float* image, float t, const float* bg, int64_t n,
+                            float* gbg) {
+  PixelSums s{0, 0};
+  for (int64_t c = 0; c < n; ++c) {
+    s.dot_image += double(d[c]) * (image[c] - t * bg[c]);
+    s.dot_background += double(d[c]) * bg[c];
+    gbg[c] += t * d[c];
+  }
+  return s;
+}
 
 #endif
 
