@@ -82,7 +82,7 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
   auto config = read_json(straight / "config.json");
   EXPECT_EQ(config["format_version"], 1);
   EXPECT_EQ(config["data"]["path"], fs::absolute(scene()).lexically_normal().string());
-  EXPECT_EQ(config["densify"]["every"], 50);
+  EXPECT_EQ(config["densify"]["every"], 30);
 
   // 100 iterations, then resume to 200: the same bytes as the straight run.
   const fs::path split = runs / "split";
