@@ -113,12 +113,17 @@ struct TileScratch {
 };
 
 // Tile lists jump through the rank-ordered arrays (a tile holds a small
-// fraction of all Gaussians), so the next chunk's splat records are requested
-// while the current chunk is blended. Colour rows are requested only for
-// Gaussians that blend at least one pixel (see blend_chunk): most of a tile's
-// list misses its pixels, and prefetching every row stalls on fill buffers.
-void prefetch_splats(const Ranked& ranked, const int32_t* ranks, int m) {
-  for (int k = 0; k < m; ++k) __builtin_prefetch(&ranked.splats[ranks[k]]);
+// fraction of all Gaussians), so splat records are requested a fixed distance
+// ahead of their use, and the head of the next tile's list while the current
+// tile is blended. Colour rows are requested only for Gaussians that blend at
+// least one pixel (see blend_chunk): most of a tile's list misses its pixels,
+// and prefetching every row stalls on fill buffers.
+constexpr int kSplatLookahead = 16;  // Gaussians
+
+void prefetch_tile_head(const Ranked& ranked, const TileBins& bins, int tile) {
+  const int32_t begin = bins.offsets[tile];
+  const int32_t end = std::min(bins.offsets[tile + 1], begin + kSplatLookahead);
+  for (int32_t b = begin; b < end; ++b) __builtin_prefetch(&ranked.splats[bins.ranks[b]]);
 }
 
 void prefetch_row(const float* row, int np) {
@@ -137,10 +142,14 @@ TileScratch& scratch() {
 // The 3DGS per-pixel recurrence for one chunk of depth ranks, Gaussian-major
 // over each splat's ellipse, row span by row span. One function for forward and
 // backward, so the backward replays exactly the same float operations.
-void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int np,
-                 bool gaussian_lists) {
+// ranks[0, remaining) are valid (the rest of the tile's list), ranks[0, m)
+// form this chunk.
+void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int remaining,
+                 int np, bool gaussian_lists) {
   std::fill(s.count, s.count + kPixels, uint8_t(0));
   for (int k = 0; k < m; ++k) {
+    if (k + kSplatLookahead < remaining)
+      __builtin_prefetch(&ranked.splats[ranks[k + kSplatLookahead]]);
     const Splat& g = ranked.splats[ranks[k]];
     s.col_rows[k] = ranked.row(ranks[k], np);
     s.gcount[k] = 0;
@@ -229,16 +238,17 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
 #pragma omp parallel num_threads(lists) reduction(+ : pairs)
   for (int list = omp_get_thread_num(); list < lists; list += omp_get_num_threads()) {
     TileScratch& s = scratch();
-    for (int tile : bins.thread_tiles[list]) {
+    const std::vector<int32_t>& tiles = bins.thread_tiles[list];
+    for (size_t i = 0; i < tiles.size(); ++i) {
+      const int tile = tiles[i];
+      if (i + 1 < tiles.size()) prefetch_tile_head(ranked, bins, tiles[i + 1]);
       s.start(bins, tile, width, height, np);
       float dsum[kPixels] = {};
       const int32_t end = bins.offsets[tile + 1];
       for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
         const int32_t* ranks = bins.ranks.data() + b;
         const int m = std::min<int32_t>(kChunk, end - b);
-        if (b + kChunk < end)
-          prefetch_splats(ranked, ranks + kChunk, std::min<int32_t>(kChunk, end - b - kChunk));
-        blend_chunk(s, ranked, ranks, m, np, false);
+        blend_chunk(s, ranked, ranks, m, end - b, np, false);
         for (int p = 0; p < kPixels; ++p) {
           const int c = s.count[p];
           if (c == 0) continue;
@@ -305,7 +315,10 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
     std::fill(gcol, gcol + visible * np, 0.0f);
     std::fill(ggeo, ggeo + visible * kSlots, 0.0f);
     std::fill(gbg, gbg + n, 0.0f);
-    for (int tile : bins.thread_tiles[list]) {
+    const std::vector<int32_t>& tiles = bins.thread_tiles[list];
+    for (size_t i = 0; i < tiles.size(); ++i) {
+      const int tile = tiles[i];
+      if (i + 1 < tiles.size()) prefetch_tile_head(ranked, bins, tiles[i + 1]);
       s.start(bins, tile, width, height, np);
       // Per pixel: dL/dD, final T, dL/dT_final and the total sum_j g_j w_j,
       // so the suffix sum each pair needs is total - prefix (no reverse pass).
@@ -329,9 +342,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
       for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
         const int32_t* ranks = bins.ranks.data() + b;
         const int m = std::min<int32_t>(kChunk, end - b);
-        if (b + kChunk < end)
-          prefetch_splats(ranked, ranks + kChunk, std::min<int32_t>(kChunk, end - b - kChunk));
-        blend_chunk(s, ranked, ranks, m, np, true);
+        blend_chunk(s, ranked, ranks, m, end - b, np, true);
         // dL/dcolors = W^T dL/dimage, Gaussian-major with register accumulators.
         for (int k = 0; k < m; ++k) {
           if (s.gcount[k] == 0) continue;
