@@ -1,0 +1,51 @@
+#include "render/ranked.h"
+
+#include <ATen/Parallel.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace ddhgs::render {
+
+const Ranked& rank_gaussians(const Projected& p, const torch::Tensor& colors, const TileBins& bins,
+                             int np) {
+  thread_local Ranked cache;
+  const int64_t visible = int64_t(bins.order.size()), n = colors.size(1);
+  cache.splats.resize(visible);
+  const bool copy = np != n;
+  cache.padded.resize(copy ? size_t(visible) * np : 0);
+  // Workers must write the caller's buffers, not their own thread_local ones.
+  Splat* splats = cache.splats.data();
+  float* ranked_colors = cache.padded.data();
+  const int32_t* order = bins.order.data();
+  const float* m = p.means2d.data_ptr<float>();
+  const float* con = p.conics.data_ptr<float>();
+  const float* op = p.opacities.data_ptr<float>();
+  const float* dep = p.depths.data_ptr<float>();
+  const float* col = colors.data_ptr<float>();
+  at::parallel_for(0, visible, 1024, [&](int64_t begin, int64_t end) {
+    for (int64_t r = begin; r < end; ++r) {
+      const int64_t i = order[r];
+      if (copy) {
+        std::copy(col + i * n, col + (i + 1) * n, ranked_colors + r * np);
+        std::fill(ranked_colors + r * np + n, ranked_colors + (r + 1) * np, 0.0f);
+      }
+      Splat& s = splats[r];
+      s = {m[2 * i], m[2 * i + 1], con[3 * i], con[3 * i + 1], con[3 * i + 2], op[i], dep[i],
+           -1,       -1,           -1};
+      // o exp(-power) >= 1/255  <=>  power <= log(255 o); the ellipse
+      // power = thr has half extents sqrt(2 thr cov_xx), cov = conic^-1.
+      const double thr = std::log(255.0 * op[i]);
+      const double det = double(s.a) * s.c - double(s.b) * s.b;
+      if (!(thr >= 0) || !(det > 0)) continue;
+      s.skip_power = float(thr + 1e-3);  // margin well above float rounding
+      s.ext_x = float(std::sqrt(2 * (thr + 1e-3) * s.c / det) + 1);
+      s.ext_y = float(std::sqrt(2 * (thr + 1e-3) * s.a / det) + 1);
+    }
+  });
+  cache.rows = copy ? ranked_colors : col;
+  cache.row_of_rank = copy ? nullptr : order;
+  return cache;
+}
+
+}  // namespace ddhgs::render
