@@ -15,6 +15,8 @@ int main(int argc, char** argv) {
   CLI::App app{"ddhgs: hyperspectral Gaussian splatting (DD-HGS) on the CPU"};
   app.set_version_flag("--version", std::string(DDHGS_VERSION));
   app.require_subcommand(1);
+  // Global options are accepted after the subcommand too (ddhgs train ... --threads 2).
+  app.fallthrough();
   int threads = 0;
   bool quiet = false, verbose = false;
   app.add_option("--threads", threads, "Worker threads (default: $DDHGS_THREADS or all cores)");
