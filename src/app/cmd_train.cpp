@@ -18,7 +18,7 @@ namespace fs = std::filesystem;
 struct TrainArgs {
   std::string data, out, preset = "default", resume, band_range;
   std::vector<std::string> assignments;
-  bool force = false, rgb = false, random_init = false;
+  bool force = false, rgb = false, random_init = false, no_spectral_loss = false;
   int64_t iterations = 0, seed = 0, max_gaussians = 0, checkpoint_every = 0;
   int downscale = 1, bin = 1;
   size_t cache_mb = 0;
@@ -39,6 +39,7 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
   set("--checkpoint-every", "output.checkpoint_every", std::to_string(a.checkpoint_every));
   if (a.rgb) train::set_key(config, "data.rgb", "true", "--rgb");
   if (a.random_init) train::set_key(config, "init.random", "true", "--random-init");
+  if (a.no_spectral_loss) train::set_key(config, "loss.spectral", "0", "--no-spectral-loss");
   if (given("--band-range")) {
     auto colon = a.band_range.find(':');
     if (colon == std::string::npos)
@@ -74,8 +75,8 @@ int run_new(const TrainArgs& a, CLI::App* cmd) {
 
 int run_resume(const TrainArgs& a, CLI::App* cmd) {
   for (const char* flag : {"--preset", "--seed", "--downscale", "--max-gaussians", "--cache-mb",
-                           "--bin", "--band-range", "--rgb", "--random-init", "--set", "--out",
-                           "--force", "--checkpoint-every"})
+                           "--bin", "--band-range", "--rgb", "--random-init", "--no-spectral-loss",
+                           "--set", "--out", "--force", "--checkpoint-every"})
     if (cmd->get_option(flag)->count() > 0)
       throw core::Error(flag, "cannot change a run being resumed (only --iterations)");
   if (!a.data.empty()) throw core::Error("--resume", "give the run folder only, not a dataset");
@@ -107,6 +108,8 @@ Action setup(CLI::App& parent) {
                   "Checkpoint interval (0: end only)");
   cmd->add_flag("--random-init", args->random_init,
                 "Start from random points in the view volume instead of the dataset's points");
+  cmd->add_flag("--no-spectral-loss", args->no_spectral_loss,
+                "Leave out the spectral loss (sets loss.spectral to 0)");
   cmd->add_flag("--force", args->force, "Replace an existing run folder (kept until success)");
   cmd->add_option("--resume", args->resume, "Continue the run in this folder");
   return

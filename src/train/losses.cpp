@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "model/ssim.h"
+#include "train/spectral_loss.h"
 
 namespace ddhgs::train {
 
@@ -36,6 +37,15 @@ std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight) {
 double psnr(const torch::Tensor& render, const torch::Tensor& target) {
   const double mse = (render.detach() - target).pow(2).mean().item<double>();
   return 10.0 * std::log10(1.0 / std::max(mse, 1e-12));
+}
+
+LossTerm spectral_term(const nlohmann::json& loss_config) {
+  SpectralLossOptions options;
+  options.alpha = loss_config.at("spectral_alpha").get<double>();
+  options.beta = loss_config.at("spectral_beta").get<double>();
+  options.temperature = loss_config.at("spectral_temperature").get<double>();
+  return {"spectral", loss_config.at("spectral").get<double>(),
+          [options](const LossInputs& in) { return spectral_loss(in.render, in.target, options); }};
 }
 
 }  // namespace ddhgs::train

@@ -2,6 +2,7 @@
 // spectral loss, the diffusion term) join by appending a term.
 #pragma once
 #include <torch/torch.h>
+#include <nlohmann/json.hpp>
 
 #include <cstdint>
 #include <functional>
@@ -37,6 +38,11 @@ torch::Tensor l1_loss(const torch::Tensor& render, const torch::Tensor& target);
 torch::Tensor dssim_loss(const torch::Tensor& render, const torch::Tensor& target);
 // The 3DGS baseline terms: "l1" and "dssim" with the given weights.
 std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight);
+
+// The DD-HGS spectral term "spectral" (train/spectral_loss.h), weighted by
+// loss.spectral, with loss.spectral_alpha, loss.spectral_beta and
+// loss.spectral_temperature from the same config object.
+LossTerm spectral_term(const nlohmann::json& loss_config);
 
 // 10 log10(1 / MSE) over all elements, data range 1 (dB).
 double psnr(const torch::Tensor& render, const torch::Tensor& target);

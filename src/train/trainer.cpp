@@ -78,10 +78,9 @@ void Trainer::load_scene() {
   extent_ = scene_extent(*scene_, scene_->train);
   const json& loss = config_.at("loss");
   losses_ = baseline_losses(loss.at("l1").get<double>(), loss.at("dssim").get<double>());
-  for (const char* later : {"spectral", "diffusion"})
-    if (loss.at(later).get<double>() != 0)
-      core::log_warn(std::string("loss.") + later +
-                     " is not part of this trainer yet; the term is left out");
+  losses_.push_back(spectral_term(loss));
+  if (loss.at("diffusion").get<double>() != 0)
+    core::log_warn("loss.diffusion is not part of this trainer yet; the term is left out");
 }
 
 void Trainer::create_optimizer() {

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "core/error.h"
+#include "train/losses.h"
 #include "train/spectral_loss.h"
 
 using ddhgs::train::spectral_loss;
@@ -83,4 +84,22 @@ TEST(SpectralLoss, GradientMatchesCentralFiniteDifferences) {
 
 TEST(SpectralLoss, RejectsMismatchedShapes) {
   EXPECT_THROW(spectral_loss(torch::zeros({2, 2, 3}), torch::zeros({2, 2, 4})), ddhgs::core::Error);
+}
+
+TEST(SpectralLoss, TrainingTermReadsItsConfigKeys) {
+  nlohmann::json loss = {{"spectral", 0.1},
+                         {"spectral_alpha", 0.3},
+                         {"spectral_beta", 0.9},
+                         {"spectral_temperature", 0.5}};
+  auto term = ddhgs::train::spectral_term(loss);
+  EXPECT_EQ(term.name, "spectral");
+  EXPECT_DOUBLE_EQ(term.weight, 0.1);
+  auto a = random_image(7, 3, 2, 5);
+  auto b = random_image(8, 3, 2, 5);
+  SpectralLossOptions opts;
+  opts.alpha = 0.3;
+  opts.beta = 0.9;
+  opts.temperature = 0.5;
+  double direct = spectral_loss(a, b, opts).item<double>();
+  EXPECT_DOUBLE_EQ(term.compute({a, b, 0, 1}).item<double>(), direct);
 }
