@@ -16,7 +16,9 @@ TEST(UNet, GroupCountDividesChannelsWithAtLeastFourPerGroup) {
     const int64_t g = model::group_count(c);
     ASSERT_EQ(c % g, 0) << c;
     ASSERT_LE(g, 32) << c;
-    if (g > 1) ASSERT_GE(c / g, 4) << c;
+    if (g > 1) {
+      ASSERT_GE(c / g, 4) << c;
+    }
   }
   EXPECT_EQ(model::group_count(32), 8);
   EXPECT_EQ(model::group_count(128), 32);
