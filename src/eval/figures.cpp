@@ -113,4 +113,13 @@ torch::Tensor stacked(const torch::Tensor& top, const torch::Tensor& bottom, int
       0);
 }
 
+torch::Tensor comparison_panels(const torch::Tensor& truth, const torch::Tensor& render,
+                                const torch::Tensor& error, Colormap map, int64_t bar_px,
+                                int64_t gap_px) {
+  torch::Tensor blank = torch::ones({bar_px, error.size(1), 3}, torch::kFloat);
+  torch::Tensor legend =
+      side_by_side({blank, blank, colour_bar(bar_px, error.size(1), map)}, gap_px);
+  return stacked(side_by_side({truth, render, error}, gap_px), legend, gap_px);
+}
+
 }  // namespace ddhgs::eval

@@ -53,4 +53,11 @@ torch::Tensor stacked(const torch::Tensor& top,     // [H1, W1, 3]
                       const torch::Tensor& bottom,  // [H2, W2, 3]
                       int64_t gap_px = 4);
 
+// truth | render | error side by side, with the error's colour bar (bar_px
+// high) under the error panel only: float [H', W', 3].
+torch::Tensor comparison_panels(const torch::Tensor& truth,   // [H, W, 3] picture
+                                const torch::Tensor& render,  // [H, W, 3] picture
+                                const torch::Tensor& error,   // [H, W, 3] heatmap
+                                Colormap map, int64_t bar_px, int64_t gap_px = 4);
+
 }  // namespace ddhgs::eval

@@ -13,7 +13,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr int64_t kGapPx = 4;         // white gap between compared pictures
 constexpr int64_t kColourBarPx = 12;  // height of the error colour bar
 
 std::string number_label(double value) {
@@ -86,14 +85,9 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
       io::write_png(
           stem.string() + "_" + label + "_diff_max" + number_label(options.diff_max) + ".png",
           error);
-      // The colour bar sits under the error panel only.
-      torch::Tensor blank = torch::ones({kColourBarPx, error.size(1), 3}, torch::kFloat);
-      torch::Tensor legend = side_by_side(
-          {blank, blank, colour_bar(kColourBarPx, error.size(1), options.colormap)}, kGapPx);
-      torch::Tensor compare = stacked(
-          side_by_side({picture(truth, wavelengths, options.bands, options.colormap), shown, error},
-                       kGapPx),
-          legend, kGapPx);
+      torch::Tensor compare =
+          comparison_panels(picture(truth, wavelengths, options.bands, options.colormap), shown,
+                            error, options.colormap, kColourBarPx);
       io::write_png(stem.string() + "_" + label + "_compare.png", compare);
       written += 2;
     }

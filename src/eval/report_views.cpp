@@ -13,7 +13,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr int64_t kGapPx = 4;
 constexpr int64_t kColourBarPx = 8;
 
 // The paper's figure ranges, nm.
@@ -73,14 +72,9 @@ torch::Tensor comparison_figure(const torch::Tensor& render, const torch::Tensor
                                 const BandSelection& bands, double diff_max) {
   const Colormap map = Colormap::Viridis;
   torch::Tensor error = error_heatmap(render, truth, bands, diff_max, map);
-  // The colour bar sits under the error panel only.
-  torch::Tensor blank = torch::ones({kColourBarPx, error.size(1), 3}, torch::kFloat);
-  torch::Tensor legend =
-      side_by_side({blank, blank, colour_bar(kColourBarPx, error.size(1), map)}, kGapPx);
-  torch::Tensor row = side_by_side({picture(truth, wavelengths_nm, bands, Colormap::Gray),
-                                    picture(render, wavelengths_nm, bands, Colormap::Gray), error},
-                                   kGapPx);
-  return stacked(row, legend, kGapPx);
+  return comparison_panels(picture(truth, wavelengths_nm, bands, Colormap::Gray),
+                           picture(render, wavelengths_nm, bands, Colormap::Gray), error, map,
+                           kColourBarPx);
 }
 
 BandAtlas band_atlas(const torch::Tensor& cube, int max_px) {
