@@ -19,6 +19,7 @@ struct TrainArgs {
   std::string data, out, preset = "default", resume, band_range;
   std::vector<std::string> assignments;
   bool force = false, rgb = false, random_init = false, no_spectral_loss = false;
+  bool wavelength_encoder = false, no_wavelength_encoder = false;
   int64_t iterations = 0, seed = 0, max_gaussians = 0, checkpoint_every = 0;
   int downscale = 1, bin = 1;
   size_t cache_mb = 0;
@@ -40,6 +41,12 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
   if (a.rgb) train::set_key(config, "data.rgb", "true", "--rgb");
   if (a.random_init) train::set_key(config, "init.random", "true", "--random-init");
   if (a.no_spectral_loss) train::set_key(config, "loss.spectral", "0", "--no-spectral-loss");
+  if (a.wavelength_encoder && a.no_wavelength_encoder)
+    throw core::Error("--wavelength-encoder", "conflicts with --no-wavelength-encoder");
+  if (a.wavelength_encoder)
+    train::set_key(config, "wavelength_encoder.enabled", "true", "--wavelength-encoder");
+  if (a.no_wavelength_encoder)
+    train::set_key(config, "wavelength_encoder.enabled", "false", "--no-wavelength-encoder");
   if (given("--band-range")) {
     auto colon = a.band_range.find(':');
     if (colon == std::string::npos)
@@ -74,9 +81,10 @@ int run_new(const TrainArgs& a, CLI::App* cmd) {
 }
 
 int run_resume(const TrainArgs& a, CLI::App* cmd) {
-  for (const char* flag : {"--preset", "--seed", "--downscale", "--max-gaussians", "--cache-mb",
-                           "--bin", "--band-range", "--rgb", "--random-init", "--no-spectral-loss",
-                           "--set", "--out", "--force", "--checkpoint-every"})
+  for (const char* flag :
+       {"--preset", "--seed", "--downscale", "--max-gaussians", "--cache-mb", "--bin",
+        "--band-range", "--rgb", "--random-init", "--no-spectral-loss", "--wavelength-encoder",
+        "--no-wavelength-encoder", "--set", "--out", "--force", "--checkpoint-every"})
     if (cmd->get_option(flag)->count() > 0)
       throw core::Error(flag, "cannot change a run being resumed (only --iterations)");
   if (!a.data.empty()) throw core::Error("--resume", "give the run folder only, not a dataset");
@@ -110,6 +118,10 @@ Action setup(CLI::App& parent) {
                 "Start from random points in the view volume instead of the dataset's points");
   cmd->add_flag("--no-spectral-loss", args->no_spectral_loss,
                 "Leave out the spectral loss (sets loss.spectral to 0)");
+  cmd->add_flag("--wavelength-encoder", args->wavelength_encoder,
+                "Train the wavelength encoder's per-band SH offsets (wavelength_encoder.enabled)");
+  cmd->add_flag("--no-wavelength-encoder", args->no_wavelength_encoder,
+                "Leave out the wavelength encoder (sets wavelength_encoder.enabled to false)");
   cmd->add_flag("--force", args->force, "Replace an existing run folder (kept until success)");
   cmd->add_option("--resume", args->resume, "Continue the run in this folder");
   return

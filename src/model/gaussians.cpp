@@ -40,7 +40,8 @@ const std::vector<std::string>& Gaussians::tensor_names() {
   return names;
 }
 
-io::GaussianPly to_ply(const Gaussians& gaussians, const std::vector<double>& wavelengths_nm) {
+io::GaussianPly to_ply(const Gaussians& gaussians, const std::vector<double>& wavelengths_nm,
+                       const torch::Tensor& band_offsets) {
   io::GaussianPly ply;
   ply.means = detached_copy(gaussians.means);
   ply.log_scales = detached_copy(gaussians.log_scales);
@@ -51,6 +52,15 @@ io::GaussianPly to_ply(const Gaussians& gaussians, const std::vector<double>& wa
                     ? detached_copy(gaussians.sh_rest)
                     : torch::zeros({gaussians.size(), gaussians.bands(), 0});
   ply.wavelengths_nm = wavelengths_nm;
+  if (band_offsets.defined()) {
+    const int64_t k = ply.sh_rest.size(2);
+    core::require(band_offsets.dim() == 2 && band_offsets.size(0) == gaussians.bands() &&
+                      band_offsets.size(1) == k + 1,
+                  "to_ply: band offsets must be [N, K+1] for the model's N bands and degree");
+    auto offsets = band_offsets.detach().to(torch::kFloat32);
+    ply.sh_dc += offsets.select(1, 0).unsqueeze(0);
+    if (k > 0) ply.sh_rest += offsets.slice(1, 1).unsqueeze(0);
+  }
   return ply;
 }
 

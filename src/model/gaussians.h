@@ -43,7 +43,10 @@ render::RenderOutput render_gaussians(const Gaussians& gaussians, const core::Ca
                                       const torch::Tensor& means2d_grad_sink = {});  // [G, 2]
 
 // Detached float32 copies; sh_rest keeps all K coefficients of the max degree.
-io::GaussianPly to_ply(const Gaussians& gaussians, const std::vector<double>& wavelengths_nm);
+// band_offsets (the wavelength encoder's [N, K+1]) are added to every
+// Gaussian's coefficients, so the PLY renders as the model did with them.
+io::GaussianPly to_ply(const Gaussians& gaussians, const std::vector<double>& wavelengths_nm,
+                       const torch::Tensor& band_offsets = {});
 // active_sh_degree becomes the file's degree (a trained model renders at full degree).
 Gaussians from_ply(const io::GaussianPly& ply);
 

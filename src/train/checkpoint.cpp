@@ -7,6 +7,11 @@ namespace ddhgs::train {
 
 namespace fs = std::filesystem;
 
+void add_module_groups(model::Adam& adam, const TrainedModule& module) {
+  for (const auto& item : module.module->named_parameters())
+    adam.add(module.name + "/" + item.key(), item.value(), module.lr);
+}
+
 void save_checkpoint(const fs::path& path, const TrainState& state) {
   torch::serialize::OutputArchive archive;
   nlohmann::json meta = state.meta;
@@ -32,10 +37,10 @@ void save_checkpoint(const fs::path& path, const TrainState& state) {
   archive.write("densify", stats);
 
   torch::serialize::OutputArchive modules;
-  for (const auto& [name, module] : state.modules) {
+  for (const auto& m : state.modules) {
     torch::serialize::OutputArchive sub;
-    module->save(sub);
-    modules.write(name, sub);
+    m.module->save(sub);
+    modules.write(m.name, sub);
   }
   archive.write("modules", modules);
 
@@ -76,9 +81,21 @@ void load_checkpoint(const fs::path& path, TrainState& state,
     }
     state.gaussians.active_sh_degree = meta.at("active_sh_degree").get<int>();
 
+    torch::serialize::InputArchive modules;
+    archive.read("modules", modules);
+    for (auto& m : state.modules) {
+      torch::serialize::InputArchive sub;
+      if (!modules.try_read(m.name, sub))
+        throw core::Error(path, "checkpoint has no module '" + m.name + "'");
+      m.module->load(sub);
+    }
+
+    // Module parameters are registered after loading them, so the optimizer
+    // holds the loaded tensors.
     state.adam = model::Adam(adam_options);
     for (size_t i = 0; i < tensors.size(); ++i)
       state.adam.add(model::Gaussians::tensor_names()[i], *tensors[i], 0.0);
+    for (const auto& m : state.modules) add_module_groups(state.adam, m);
     torch::serialize::InputArchive adam;
     archive.read("adam", adam);
     state.adam.load(adam, path.string());
@@ -89,14 +106,6 @@ void load_checkpoint(const fs::path& path, TrainState& state,
     stats.read("count", state.stats.count);
     stats.read("max_radii", state.stats.max_radii);
 
-    torch::serialize::InputArchive modules;
-    archive.read("modules", modules);
-    for (auto& [name, module] : state.modules) {
-      torch::serialize::InputArchive sub;
-      if (!modules.try_read(name, sub))
-        throw core::Error(path, "checkpoint has no module '" + name + "'");
-      module->load(sub);
-    }
   } catch (const c10::Error& e) {
     throw core::Error(path,
                       std::string("checkpoint is incomplete (") + e.what_without_backtrace() + ")");

@@ -19,23 +19,35 @@ namespace ddhgs::train {
 
 constexpr int kCheckpointFormatVersion = 1;
 
+// A network trained beside the Gaussians (wavelength encoder, denoiser). Its
+// parameters are groups "<name>/<parameter>" of the run's Adam optimizer at
+// lr (stepped only when they received a gradient), and the module is saved
+// under "modules/<name>".
+struct TrainedModule {
+  std::string name;
+  std::shared_ptr<torch::nn::Module> module;
+  double lr = 0;
+};
+
 struct TrainState {
   int64_t iteration = 0;  // iterations completed
   nlohmann::json meta;    // free-form counters (kept as written)
   model::Gaussians gaussians;
   model::Adam adam;
   model::DensifyStats stats;
-  // Extra modules saved under "modules/<name>"; the caller registers them
-  // (same names) before loading.
-  std::vector<std::pair<std::string, std::shared_ptr<torch::nn::Module>>> modules;
+  // The caller registers them (same names) before loading.
+  std::vector<TrainedModule> modules;
 };
+
+// Registers the module's parameters as Adam groups "<name>/<parameter>".
+void add_module_groups(model::Adam& adam, const TrainedModule& module);
 
 void save_checkpoint(const std::filesystem::path& path, const TrainState& state);
 
 // Fills state from the file. The Adam groups are created from the saved
-// Gaussians with the saved learning rates; modules must be registered (same
-// names) beforehand. Throws core::Error naming the file on a missing or
-// malformed file, or one of another format_version.
+// Gaussians and the registered modules, with the saved learning rates and
+// moments; modules must be registered (same names) beforehand. Throws core::Error naming the file
+// on a missing or malformed file, or one of another format_version.
 void load_checkpoint(const std::filesystem::path& path, TrainState& state,
                      const model::AdamOptions& adam_options);
 

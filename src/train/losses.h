@@ -16,6 +16,9 @@ struct LossInputs {
   const torch::Tensor& target;  // [H, W, N]
   int view;                     // index into Scene::views
   int64_t iteration;            // 1-based
+  // Seed for a term's own randomness (crops, noise), a function of the run's
+  // seed and the iteration only, so a resumed run draws what a straight one would.
+  uint64_t seed = 0;
 };
 
 struct LossTerm {

@@ -37,14 +37,13 @@ class SigintGuard {
   void (*previous_)(int);
 };
 
-// Mixes the seed with a stream id, so each iteration's randomness depends only
-// on (seed, iteration) and a resumed run draws exactly what a straight one would.
 uint64_t mix(uint64_t seed, uint64_t stream) {
-  uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (stream + 1);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
+  return mix_seed(seed, stream);
 }
+
+// Stream ids: 0 initialisation, 2 e + 1 the view order of epoch e, 2 i the
+// densification of iteration i, kTermStream + i the loss terms of iteration i.
+constexpr uint64_t kTermStream = uint64_t(1) << 40;
 
 model::DensifyOptions densify_options(const json& d) {
   model::DensifyOptions o;
@@ -62,6 +61,13 @@ bool every(int64_t iteration, int64_t interval) {
 }
 
 }  // namespace
+
+uint64_t mix_seed(uint64_t seed, uint64_t stream) {
+  uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (stream + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
 
 void Trainer::request_stop() {
   g_stop = true;
@@ -81,6 +87,37 @@ void Trainer::load_scene() {
   losses_.push_back(spectral_term(loss));
   if (loss.at("diffusion").get<double>() != 0)
     core::log_warn("loss.diffusion is not part of this trainer yet; the term is left out");
+  build_modules();
+}
+
+void Trainer::build_modules() {
+  const json& we = config_.at("wavelength_encoder");
+  if (we.at("enabled").get<bool>()) {
+    model::WavelengthEncoderOptions o;
+    o.frequencies = we.at("frequencies").get<int>();
+    o.include_input = we.at("include_input").get<bool>();
+    o.hidden = we.at("hidden").get<int>();
+    o.layers = we.at("layers").get<int>();
+    o.output_scale = we.at("output_scale").get<double>();
+    const int degree = config_.at("model").at("sh_degree").get<int>();
+    o.sh_coeffs = (degree + 1) * (degree + 1);
+    // Its initial weights come from the run's seed (the last layer is zero).
+    torch::manual_seed(mix(config_.at("seed").get<uint64_t>(), 1));
+    encoder_ = model::WavelengthEncoder(o);
+    wavelengths01_ = model::normalise_wavelengths(scene_->wavelengths_nm);
+    add_module("wavelength_encoder", encoder_.ptr(), we.at("lr").get<double>());
+  }
+}
+
+void Trainer::add_module(const std::string& name, std::shared_ptr<torch::nn::Module> module,
+                         double lr) {
+  for (const auto& m : state_.modules)
+    if (m.name == name) throw core::Error("trainer: module '" + name + "' added twice");
+  state_.modules.push_back({name, std::move(module), lr});
+}
+
+torch::Tensor Trainer::band_offsets() {
+  return encoder_ ? encoder_->forward(wavelengths01_) : torch::Tensor();
 }
 
 void Trainer::create_optimizer() {
@@ -90,6 +127,7 @@ void Trainer::create_optimizer() {
   auto tensors = state_.gaussians.tensors();
   for (size_t i = 0; i < tensors.size(); ++i)
     state_.adam.add(model::Gaussians::tensor_names()[i], *tensors[i], 0.0);
+  for (const auto& m : state_.modules) add_module_groups(state_.adam, m);
 }
 
 void Trainer::set_learning_rates(int64_t iteration) {
@@ -170,8 +208,10 @@ void Trainer::step(int64_t iteration, json& record) {
   const core::Camera& camera = scene_->views[view].camera;
   torch::Tensor target = scene_->image(view);
   auto sink = torch::zeros({g.size(), 2}).requires_grad_(true);
-  auto out = model::render_gaussians(g, camera, background_, {}, sink);
-  LossValues loss = evaluate_losses(losses_, {out.image, target, view, iteration});
+  auto out = model::render_gaussians(g, camera, background_, band_offsets(), sink);
+  LossValues loss = evaluate_losses(
+      losses_, {out.image, target, view, iteration,
+                mix(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration))});
   loss.total.backward();
 
   const json& d = config_.at("densify");
@@ -216,14 +256,16 @@ void Trainer::save(bool numbered) {
   }
 }
 
-json Trainer::test_psnr() const {
+json Trainer::test_psnr() {
   // A quick held-out check; `ddhgs eval` computes the full metrics.
   torch::NoGradGuard no_grad;
   double noisy = 0, clean = 0;
   int n_clean = 0;
+  const torch::Tensor offsets = band_offsets();
   for (int v : scene_->test) {
-    auto image = model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_)
-                     .image.clamp(0, 1);
+    auto image =
+        model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_, offsets)
+            .image.clamp(0, 1);
     noisy += psnr(image, scene_->image(v));
     torch::Tensor gt = scene_->clean_image(v);
     if (gt.defined()) {
@@ -239,7 +281,15 @@ json Trainer::test_psnr() const {
 }
 
 void Trainer::write_outputs(double seconds) {
-  io::write_gaussian_ply(run_.gaussians(), model::to_ply(state_.gaussians, scene_->wavelengths_nm));
+  // The encoder's offsets are added to the exported coefficients, so any
+  // renderer of the PLY sees what training saw.
+  torch::Tensor offsets;
+  {
+    torch::NoGradGuard no_grad;
+    offsets = band_offsets();
+  }
+  io::write_gaussian_ply(run_.gaussians(),
+                         model::to_ply(state_.gaussians, scene_->wavelengths_nm, offsets));
   const int64_t iterations = config_.at("iterations").get<int64_t>();
   const int degree = state_.gaussians.max_sh_degree();
   json summary = {

@@ -11,11 +11,16 @@
 
 #include "io/dataset.h"
 #include "model/gaussians.h"
+#include "model/wavelength_encoder.h"
 #include "train/checkpoint.h"
 #include "train/losses.h"
 #include "train/run_folder.h"
 
 namespace ddhgs::train {
+
+// Mixes a seed with a stream id (splitmix64): every random draw of training
+// depends only on (seed, stream), never on what was drawn before.
+uint64_t mix_seed(uint64_t seed, uint64_t stream);
 
 enum class TrainStatus { Finished, Interrupted };
 
@@ -34,6 +39,13 @@ class Trainer {
 
   // Loss terms; later components append their own before run().
   std::vector<LossTerm>& losses() { return losses_; }
+  // Adds a network trained beside the Gaussians (train/checkpoint.h
+  // TrainedModule). Call while the trainer is built (load_scene), before the
+  // optimizer is created or a checkpoint is read.
+  void add_module(const std::string& name, std::shared_ptr<torch::nn::Module> module, double lr);
+  // The wavelength encoder's per-band SH offsets [N, (degree+1)^2], or an
+  // undefined tensor when the encoder is off. Differentiable.
+  torch::Tensor band_offsets();
   TrainState& state() { return state_; }
   const io::Scene& scene() const { return *scene_; }
   const nlohmann::json& config() const { return config_; }
@@ -44,6 +56,8 @@ class Trainer {
  private:
   Trainer(nlohmann::json config, RunPaths run);
   void load_scene();
+  // The networks beside the Gaussians, from the config (both start and resume).
+  void build_modules();
   void create_optimizer();
   void set_learning_rates(int64_t iteration);
   int view_for(int64_t iteration) const;
@@ -51,7 +65,7 @@ class Trainer {
   void save(bool numbered);
   void write_outputs(double seconds);
   // Mean PSNR (dB) of the held-out views, against noisy and clean ground truth.
-  nlohmann::json test_psnr() const;
+  nlohmann::json test_psnr();
 
   nlohmann::json config_;
   RunPaths run_;
@@ -60,6 +74,8 @@ class Trainer {
   std::vector<LossTerm> losses_;
   torch::Tensor background_;  // [N]
   double extent_ = 1;
+  model::WavelengthEncoder encoder_{nullptr};
+  torch::Tensor wavelengths01_;  // [N] the encoder's input
   bool replacing_ = false;
 };
 

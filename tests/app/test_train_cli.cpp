@@ -98,6 +98,41 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
     EXPECT_EQ(resumed[i]["loss"], metrics[i]["loss"]) << i;
 }
 
+TEST(TrainCli, WavelengthEncoderTrainsResumesAndIsBakedIntoThePly) {
+  // A large encoder learning rate so 120 iterations move its offsets visibly.
+  const std::string args = " --wavelength-encoder --set wavelength_encoder.lr=1e-3" + kSchedule;
+  fs::path runs = test::temp_dir("train_cli_encoder");
+  std::string out;
+  const fs::path straight = runs / "straight", split = runs / "split", off = runs / "off";
+  ASSERT_EQ(
+      train(scene().string() + " --out " + straight.string() + " --iterations 120" + args, &out), 0)
+      << out;
+  ASSERT_EQ(
+      train(scene().string() + " --out " + off.string() + args + " --no-wavelength-encoder", &out),
+      1);
+  EXPECT_NE(out.find("conflicts with --no-wavelength-encoder"), std::string::npos) << out;
+  ASSERT_EQ(
+      train(scene().string() + " --out " + off.string() + " --iterations 120" + kSchedule, &out), 0)
+      << out;
+  // The encoder changes the model...
+  EXPECT_NE(io::read_file(off / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
+  EXPECT_EQ(read_json(straight / "config.json")["wavelength_encoder"]["enabled"], true);
+
+  // ...its weights and optimizer state resume bit for bit...
+  ASSERT_EQ(train(scene().string() + " --out " + split.string() + args + " --iterations 60", &out),
+            0)
+      << out;
+  ASSERT_EQ(train("--resume " + split.string() + " --iterations 120", &out), 0) << out;
+  EXPECT_EQ(io::read_file(split / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
+
+  // ...and the PLY carries the offsets: `ddhgs eval` renders the PLY alone and
+  // gets the PSNR the trainer measured with the encoder.
+  ASSERT_EQ(test::run_command(test::ddhgs_binary() + " eval " + straight.string(), &out), 0) << out;
+  const double trained = read_json(straight / "train_summary.json")["test_psnr"].get<double>();
+  const double evaluated = read_json(straight / "eval" / "metrics.json")["psnr"].get<double>();
+  EXPECT_NEAR(evaluated, trained, 1e-4);
+}
+
 TEST(TrainCli, RefusesAnExistingRunAndBadConfigs) {
   fs::path runs = test::temp_dir("train_cli_refuse");
   fs::create_directories(runs / "taken");

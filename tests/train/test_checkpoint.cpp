@@ -43,12 +43,15 @@ TEST(Checkpoint, RoundTripRestoresEverything) {
   auto dir = test::temp_dir("ckpt_roundtrip");
   auto s = make_state();
   auto module = std::make_shared<torch::nn::LinearImpl>(3, 2);
-  s.modules.emplace_back("encoder", module);
+  s.modules.push_back({"encoder", module, 1e-3});
+  train::add_module_groups(s.adam, s.modules.back());
+  module->weight.mutable_grad() = torch::rand({2, 3});
+  s.adam.step();  // the module's moments and step count are saved too
   train::save_checkpoint(dir / "c.pt", s);
 
   train::TrainState r;
   auto other = std::make_shared<torch::nn::LinearImpl>(3, 2);
-  r.modules.emplace_back("encoder", other);
+  r.modules.push_back({"encoder", other, 0.0});
   train::load_checkpoint(dir / "c.pt", r, {});
   EXPECT_EQ(r.iteration, 123);
   EXPECT_EQ(r.gaussians.active_sh_degree, 2);
@@ -61,8 +64,13 @@ TEST(Checkpoint, RoundTripRestoresEverything) {
     EXPECT_TRUE(torch::equal(g.exp_avg_sq, h.exp_avg_sq));
     EXPECT_EQ(g.step, h.step);
     EXPECT_DOUBLE_EQ(g.lr, h.lr);
-    EXPECT_TRUE(h.param.is_same(*r.gaussians.tensors()[&g - &s.adam.groups()[0]]));
   }
+  for (size_t i = 0; i < r.gaussians.tensors().size(); ++i)
+    EXPECT_TRUE(r.adam.groups()[i].param.is_same(*r.gaussians.tensors()[i])) << i;
+  // The optimizer steps the loaded module's own tensors, at the saved rate.
+  EXPECT_TRUE(r.adam.group("encoder/weight").param.is_same(other->weight));
+  EXPECT_EQ(r.adam.group("encoder/weight").step, 1);
+  EXPECT_DOUBLE_EQ(r.adam.group("encoder/bias").lr, 1e-3);
   EXPECT_TRUE(torch::equal(s.stats.grad_sum, r.stats.grad_sum));
   EXPECT_TRUE(torch::equal(module->weight, other->weight));
   // No temporary file is left behind.
