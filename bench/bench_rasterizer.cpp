@@ -108,7 +108,8 @@ int64_t count_pairs(const Scene& s) {
   const render::Projected p =
       render::project_forward(s.means, s.log_scales, s.quats, s.logit_opacities, s.camera);
   render::TileBins bins;
-  render::bin_gaussians(p.means2d.data_ptr<float>(), p.depths.data_ptr<float>(),
+  render::bin_gaussians(p.means2d.data_ptr<float>(), p.conics.data_ptr<float>(),
+                        p.opacities.data_ptr<float>(), p.depths.data_ptr<float>(),
                         p.radii.data_ptr<int32_t>(), p.means2d.size(0), s.camera.width,
                         s.camera.height, core::thread_count(), bins);
   return render::blend_forward(p, s.colors, s.background, bins, s.camera.width, s.camera.height,

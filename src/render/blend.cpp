@@ -17,38 +17,39 @@ namespace ddhgs::render {
 namespace {
 
 constexpr int kPixels = kTileSize * kTileSize;
-constexpr int kChunk = 64;  // Gaussians per chunk: per-pair indices fit a byte
-constexpr float kMinTransmittance = 1e-4f;
+constexpr int kChunk = 64;  // Gaussians per chunk: one bit each in a 64-bit pixel mask
+// Per-pixel rows padded so that 8-lane loads and stores at a row's last pixel
+// stay inside the array.
+constexpr int kStride = kPixels + kRowLanes;
 // Per-Gaussian gradient slots accumulated by the blender.
 enum Slot { kMx, kMy, kConA, kConB, kConC, kOpacity, kDepth, kSlots = 8 };
 
 // Per-thread scratch for one tile; thread_local in the OpenMP workers, so it
-// is allocated once and reused by every later call.
+// is allocated once and reused by every later call. Per-pair values of a
+// chunk are stored densely, [Gaussian][pixel], as whole 8-pixel runs (no
+// per-pair scalar work while blending); bit masks say which entries are real.
 struct TileScratch {
   int x0, y0, x1, y1, ndone, npix;
-  float T[kPixels];
-  uint8_t done[kPixels + kRowLanes];  // padded: rows are read 8 pixels at a time
-  uint8_t count[kPixels];             // pairs per pixel in this chunk
-  uint8_t gauss[kPixels * kChunk];    // chunk-local Gaussian of each pair
-  float weight[kPixels * kChunk];     // alpha * T
-  float raw[kPixels * kChunk];        // o exp(-power) before the 0.99 clamp
-  float trans[kPixels * kChunk];      // T before the pair
-  int16_t gcount[kChunk];             // pairs per Gaussian in this chunk
-  uint8_t gpix[kChunk * kPixels];
-  float gweight[kChunk * kPixels];
-  const float* col_rows[kChunk];   // colour row of each chunk Gaussian
-  float depth[kChunk];             // camera z of each chunk Gaussian
-  const float* pix_rows[kPixels];  // row of acc for each pixel
-  std::vector<float> acc;          // [kPixels, np] colour sums (forward) or dL/dimage (backward)
-  uint8_t touched[kPixels];        // forward: acc row holds a sum (rows are not zeroed up front)
+  float T[kStride];
+  uint8_t done[kStride];
+  uint64_t pmask[kStride];               // bit k: chunk Gaussian k blends pixel p
+  uint64_t gmask[kChunk][kPixels / 64];  // backward: pixels each chunk Gaussian blends
+  float weight[kChunk * kStride];        // alpha * T
+  float raw[kChunk * kStride];           // backward: o exp(-power) before the 0.99 clamp
+  float trans[kChunk * kStride];         // backward: T before the pair
+  const float* col_rows[kChunk];         // colour row of each chunk Gaussian
+  float depth[kChunk];                   // camera z of each chunk Gaussian
+  const float* pix_rows[kPixels];        // row of acc for each pixel
+  std::vector<float> acc;    // [kPixels, np] colour sums (forward) or dL/dimage (backward)
+  uint8_t touched[kPixels];  // forward: acc row holds a sum (rows are not zeroed up front)
 
   void start(const TileBins& bins, int tile, int width, int height, int np) {
     x0 = (tile % bins.tiles_x) * kTileSize, y0 = (tile / bins.tiles_x) * kTileSize;
     x1 = std::min(width, x0 + kTileSize), y1 = std::min(height, y0 + kTileSize);
     npix = (x1 - x0) * (y1 - y0);
     ndone = 0;
-    std::fill(T, T + kPixels, 1.0f);
-    std::fill(done, done + kPixels + kRowLanes, uint8_t(0));
+    std::fill(T, T + kStride, 1.0f);
+    std::fill(done, done + kStride, uint8_t(0));
     acc.resize(size_t(kPixels) * np);
     std::fill(touched, touched + kPixels, uint8_t(0));
     for (int p = 0; p < kPixels; ++p) pix_rows[p] = acc.data() + size_t(p) * np;
@@ -83,78 +84,100 @@ TileScratch& scratch() {
   return *s;
 }
 
+int clip(float v, int lo, int hi) {
+  return v < float(lo) ? lo : v > float(hi) ? hi : int(v);
+}
+
+// dst[i] |= value for each bit i of bits (i < 8).
+inline void or_lane_bits(uint64_t* dst, unsigned bits, uint64_t value) {
+#if defined(__AVX2__)
+  const __m256i b = _mm256_set1_epi64x(bits), v = _mm256_set1_epi64x(int64_t(value));
+  const __m256i lo = _mm256_setr_epi64x(1, 2, 4, 8), hi = _mm256_setr_epi64x(16, 32, 64, 128);
+  auto* d = reinterpret_cast<__m256i*>(dst);
+  const __m256i m_lo = _mm256_and_si256(_mm256_cmpeq_epi64(_mm256_and_si256(b, lo), lo), v);
+  const __m256i m_hi = _mm256_and_si256(_mm256_cmpeq_epi64(_mm256_and_si256(b, hi), hi), v);
+  _mm256_storeu_si256(d, _mm256_or_si256(_mm256_loadu_si256(d), m_lo));
+  _mm256_storeu_si256(d + 1, _mm256_or_si256(_mm256_loadu_si256(d + 1), m_hi));
+#else
+  for (int i = 0; i < kRowLanes; ++i)
+    if (bits >> i & 1) dst[i] |= value;
+#endif
+}
+
 // The 3DGS per-pixel recurrence for one chunk of depth ranks, Gaussian-major
-// over each splat's ellipse, row span by row span. One function for forward and
-// backward, so the backward replays exactly the same float operations.
-// ranks[0, remaining) are valid (the rest of the tile's list), ranks[0, m)
-// form this chunk.
+// over each splat's ellipse, row span by row span, 8 pixels at a time. One
+// function for forward and backward, so the backward replays exactly the same
+// float operations. ranks[0, remaining) are valid (the rest of the tile's
+// list), ranks[0, m) form this chunk.
 void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int remaining,
-                 int np, bool gaussian_lists) {
-  std::fill(s.count, s.count + kPixels, uint8_t(0));
+                 int np, bool backward) {
+  std::fill(s.pmask, s.pmask + kStride, uint64_t(0));
+  if (backward) std::memset(s.gmask, 0, sizeof s.gmask);
   for (int k = 0; k < m; ++k) {
     if (k + kSplatLookahead < remaining)
       __builtin_prefetch(&ranked.splats[ranks[k + kSplatLookahead]]);
     const Splat& g = ranked.splats[ranks[k]];
     s.col_rows[k] = ranked.row(ranks[k], np);
-    s.gcount[k] = 0;
     s.depth[k] = g.depth;
     if (g.ext_x < 0) continue;
-    bool hit = false;
-    auto clip = [](double v, int lo, int hi) { return int(v < lo ? lo : v > hi ? hi : v); };
     // Pixel x has its centre at x + 0.5.
     const int xa = clip(std::floor(g.mx - g.ext_x - 0.5f), s.x0, s.x1);
     const int xb = clip(std::ceil(g.mx + g.ext_x - 0.5f) + 1, s.x0, s.x1);
     const int ya = clip(std::floor(g.my - g.ext_y - 0.5f), s.y0, s.y1);
     const int yb = clip(std::ceil(g.my + g.ext_y - 0.5f) + 1, s.y0, s.y1);
-    // The conic needs its reciprocal only once per Gaussian for the row spans.
+    // Row span where power <= skip_power + 1e-3: the roots in dx of
+    // 0.5 a dx^2 + b dy dx + 0.5 c dy^2 - power, i.e. dx = -(b / a) dy +- hw,
+    // hw^2 = 2 power / a - (det / a^2) dy^2, widened by a pixel so the exact
+    // per-pixel test, not float rounding here, decides. The coefficients
+    // come from double; the extra 1e-3 of power keeps the float rounding of
+    // hw^2 (~1e-6 / a) on the safe side.
     const double inv_a = 1.0 / double(g.a);
-    const double span_power = double(g.skip_power) + 1e-3;
+    const double det = double(g.a) * g.c - double(g.b) * g.b;
+    const float k0 = float(2 * (double(g.skip_power) + 1e-3) * inv_a);
+    const float k1 = float(det * inv_a * inv_a);
+    const float k2 = float(double(g.b) * inv_a);
+    const uint64_t kbit = uint64_t(1) << k;
+    float* weight = s.weight + k * kStride;
+    float* raw = s.raw + k * kStride;
+    float* trans = s.trans + k * kStride;
+    unsigned any = 0;
     for (int y = ya; y < yb; ++y) {
       const float dy = g.my - (float(y) + 0.5f);
-      // Row span where power <= skip_power: the roots in dx of
-      // 0.5 a dx^2 + b dy dx + 0.5 c dy^2 - skip_power, widened by a pixel so
-      // the exact per-pixel test below, not float rounding here, decides.
-      const double bdy = double(g.b) * dy;
-      const double disc = bdy * bdy - double(g.a) * (double(g.c) * dy * dy - 2 * span_power);
-      if (disc < 0) continue;
-      const double root = std::sqrt(disc);
-      const double centre = double(g.mx) - 0.5 + bdy * inv_a;  // pixel x at dx = -b dy / a
-      const int xr0 = clip(std::floor(centre - root * inv_a) - 1, xa, xb);
-      const int xr1 = clip(std::ceil(centre + root * inv_a) + 2, xa, xb);
+      const float hw2 = k0 - k1 * dy * dy;
+      if (!(hw2 >= 0)) continue;
+      const float hw = std::sqrt(hw2);
+      const float centre = g.mx - 0.5f + k2 * dy;  // pixel x where power is least
+      const int xr0 = clip(std::floor(centre - hw) - 1, xa, xb);
+      const int xr1 = clip(std::ceil(centre + hw) + 2, xa, xb);
       const int row = s.pixel(0, y);
       for (int x = xr0; x < xr1; x += kRowLanes) {
-        float raw8[kRowLanes];
-        unsigned lanes = splat_row(g, x, std::min(kRowLanes, xr1 - x), dy, s.done + row + x, raw8);
-        while (lanes) {
-          const int i = __builtin_ctz(lanes);
-          lanes &= lanes - 1;
-          const int p = row + x + i;
-          const float raw = raw8[i];
-          const float alpha = raw < kMaxAlpha ? raw : kMaxAlpha;
-          const float t = s.T[p];
-          const float next = t * (1.0f - alpha);
-          if (next < kMinTransmittance) {
-            s.done[p] = 1;
-            ++s.ndone;
-            continue;
-          }
-          const int j = p * kChunk + s.count[p]++;
-          s.gauss[j] = uint8_t(k);
-          s.weight[j] = alpha * t;
-          s.T[p] = next;
-          hit = true;
-          if (gaussian_lists) {  // backward-only per-pair state
-            s.raw[j] = raw;
-            s.trans[j] = t;
-            const int q = k * kPixels + s.gcount[k]++;
-            s.gpix[q] = uint8_t(p);
-            s.gweight[q] = alpha * t;
-          }
+        const int p = row + x;
+        const RowState st{s.T + p, s.done + p, weight + p, backward ? raw + p : nullptr, trans + p};
+        const RowBits bits = blend_row(g, x, std::min(kRowLanes, xr1 - x), dy, st);
+        for (unsigned stop = bits.stop; stop; stop &= stop - 1) {
+          s.done[p + __builtin_ctz(stop)] = 1;
+          ++s.ndone;
         }
+        if (!bits.blend) continue;
+        any |= bits.blend;
+        or_lane_bits(s.pmask + p, bits.blend, kbit);
+        // A run stays inside its 16-pixel row, so inside one 64-pixel word.
+        if (backward) s.gmask[k][p >> 6] |= uint64_t(bits.blend) << (p & 63);
       }
     }
-    if (hit) prefetch_row(s.col_rows[k], np);
+    if (any) prefetch_row(s.col_rows[k], np);
   }
+}
+
+// The pairs of pixel p in this chunk, in depth order: chunk Gaussian and weight.
+int pixel_pairs(const TileScratch& s, int p, uint8_t* gauss, float* weight) {
+  int c = 0;
+  for (uint64_t bits = s.pmask[p]; bits; bits &= bits - 1, ++c) {
+    const int k = __builtin_ctzll(bits);
+    gauss[c] = uint8_t(k);
+    weight[c] = s.weight[k * kStride + p];
+  }
+  return c;
 }
 
 }  // namespace
@@ -194,14 +217,15 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
         const int m = std::min<int32_t>(kChunk, end - b);
         blend_chunk(s, ranked, ranks, m, end - b, np, false);
         for (int p = 0; p < kPixels; ++p) {
-          const int c = s.count[p];
-          if (c == 0) continue;
+          if (s.pmask[p] == 0) continue;
+          uint8_t gauss[kChunk];
+          float weight[kChunk];
+          const int c = pixel_pairs(s, p, gauss, weight);
           pairs += c;
-          const int j0 = p * kChunk;
-          kernels::gather_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, s.gauss + j0,
-                               s.weight + j0, c, s.touched[p]);
+          kernels::gather_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, gauss, weight, c,
+                               s.touched[p]);
           s.touched[p] = 1;
-          for (int j = 0; j < c; ++j) dsum[p] += s.weight[j0 + j] * s.depth[s.gauss[j0 + j]];
+          for (int j = 0; j < c; ++j) dsum[p] += weight[j] * s.depth[gauss[j]];
         }
       }
       for (int y = s.y0; y < s.y1; ++y)
@@ -289,24 +313,32 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
         blend_chunk(s, ranked, ranks, m, end - b, np, true);
         // dL/dcolors = W^T dL/dimage, Gaussian-major with register accumulators.
         for (int k = 0; k < m; ++k) {
-          if (s.gcount[k] == 0) continue;
-          float* dst = gcol + int64_t(ranks[k]) * np;
-          kernels::gather_axpy(dst, s.pix_rows, np, s.gpix + k * kPixels, s.gweight + k * kPixels,
-                               s.gcount[k]);
+          uint8_t pix[kPixels];
+          float weight[kPixels];
+          int c = 0;
+          for (int word = 0; word < kPixels / 64; ++word)
+            for (uint64_t bits = s.gmask[k][word]; bits; bits &= bits - 1, ++c) {
+              const int p = word * 64 + __builtin_ctzll(bits);
+              pix[c] = uint8_t(p);
+              weight[c] = s.weight[k * kStride + p];
+            }
+          if (c == 0) continue;
+          kernels::gather_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows, np, pix, weight, c);
         }
         float geo[kChunk][kSlots] = {};
         for (int p = 0; p < kPixels; ++p) {
-          const int c = s.count[p];
-          if (c == 0) continue;
+          if (s.pmask[p] == 0) continue;
+          uint8_t gauss[kChunk];
+          float weight[kChunk];
+          const int c = pixel_pairs(s, p, gauss, weight);
           float gdot[kChunk] = {};
-          const int j0 = p * kChunk;
-          kernels::gather_dot(s.pix_rows[p], s.col_rows, np, s.gauss + j0, c, gdot);
+          kernels::gather_dot(s.pix_rows[p], s.col_rows, np, gauss, c, gdot);
           const float px = float(s.x0 + p % kTileSize) + 0.5f;
           const float py = float(s.y0 + p / kTileSize) + 0.5f;
           for (int j = 0; j < c; ++j) {
-            const int k = s.gauss[j0 + j];
+            const int k = gauss[j];
             const Splat& sp = ranked.splats[ranks[k]];
-            const float w = s.weight[j0 + j], raw = s.raw[j0 + j], t = s.trans[j0 + j];
+            const float w = weight[j], raw = s.raw[k * kStride + p], t = s.trans[k * kStride + p];
             const float g = gdot[j] + sp.depth * dd[p];
             geo[k][kDepth] += w * dd[p];
             prefix[p] += double(g) * w;

@@ -33,14 +33,9 @@ const Ranked& rank_gaussians(const Projected& p, const torch::Tensor& colors, co
       Splat& s = splats[r];
       s = {m[2 * i], m[2 * i + 1], con[3 * i], con[3 * i + 1], con[3 * i + 2], op[i], dep[i],
            -1,       -1,           -1};
-      // o exp(-power) >= 1/255  <=>  power <= log(255 o); the ellipse
-      // power = thr has half extents sqrt(2 thr cov_xx), cov = conic^-1.
-      const double thr = std::log(255.0 * op[i]);
-      const double det = double(s.a) * s.c - double(s.b) * s.b;
-      if (!(thr >= 0) || !(det > 0)) continue;
-      s.skip_power = float(thr + 1e-3);  // margin well above float rounding
-      s.ext_x = float(std::sqrt(2 * (thr + 1e-3) * s.c / det) + 1);
-      s.ext_y = float(std::sqrt(2 * (thr + 1e-3) * s.a / det) + 1);
+      const SplatExtent e = splat_extent(s.a, s.b, s.c, s.opacity);
+      if (e.empty) continue;
+      s.skip_power = e.skip_power, s.ext_x = e.ext_x, s.ext_y = e.ext_y;
     }
   });
   cache.rows = copy ? ranked_colors : col;

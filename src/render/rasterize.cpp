@@ -86,7 +86,8 @@ RenderCamera unpack(const std::vector<double>& v) {
 
 TileBins& bins_for(const Projected& p, const RenderCamera& cam) {
   thread_local TileBins bins;  // capacity reused between calls
-  bin_gaussians(p.means2d.data_ptr<float>(), p.depths.data_ptr<float>(),
+  bin_gaussians(p.means2d.data_ptr<float>(), p.conics.data_ptr<float>(),
+                p.opacities.data_ptr<float>(), p.depths.data_ptr<float>(),
                 p.radii.data_ptr<int32_t>(), p.means2d.size(0), cam.width, cam.height,
                 core::thread_count(), bins);
   return bins;

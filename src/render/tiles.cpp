@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include "core/error.h"
+#include "render/splat_row.h"
 
 namespace ddhgs::render {
 namespace {
@@ -50,29 +51,35 @@ void radix_sort(SortScratch& s) {
   }
 }
 
-// Longest-processing-time assignment: deterministic (ties go to the lower
-// tile and thread index) and balanced, so backward gradient sums per thread
-// are reproducible run to run while uneven tiles still share the cores.
+// Tiles in serpentine row order (left to right, then right to left), cut
+// into one contiguous run per thread of about equal cost. Consecutive tiles
+// are neighbours and share most of their Gaussians, so a tile finds the splat
+// records and colour rows of the previous one still in cache. Deterministic,
+// so backward gradient sums per thread are reproducible run to run.
 void assign_tiles(int threads, TileBins& bins) {
   const int n = bins.num_tiles();
-  std::vector<int32_t> tiles(n);
-  std::iota(tiles.begin(), tiles.end(), 0);
   auto cost = [&](int t) { return int64_t(bins.offsets[t + 1] - bins.offsets[t]) + 1; };
-  std::stable_sort(tiles.begin(), tiles.end(), [&](int a, int b) { return cost(a) > cost(b); });
+  int64_t total = 0;
+  for (int t = 0; t < n; ++t) total += cost(t);
   bins.thread_tiles.resize(threads);
   for (auto& list : bins.thread_tiles) list.clear();
-  std::vector<int64_t> load(threads, 0);
-  for (int t : tiles) {
-    const int k = int(std::min_element(load.begin(), load.end()) - load.begin());
-    bins.thread_tiles[k].push_back(t);
-    load[k] += cost(t);
-  }
+  int64_t done = 0;
+  for (int ty = 0; ty < bins.tiles_y; ++ty)
+    for (int i = 0; i < bins.tiles_x; ++i) {
+      const int t = ty * bins.tiles_x + (ty % 2 == 0 ? i : bins.tiles_x - 1 - i);
+      // The thread whose share of the total cost holds this tile's midpoint.
+      const int k =
+          int(std::min<int64_t>(threads - 1, (2 * done + cost(t)) * threads / (2 * total)));
+      bins.thread_tiles[k].push_back(t);
+      done += cost(t);
+    }
 }
 
 }  // namespace
 
-void bin_gaussians(const float* means2d, const float* depths, const int32_t* radii, int64_t count,
-                   int width, int height, int threads, TileBins& bins) {
+void bin_gaussians(const float* means2d, const float* conics, const float* opacities,
+                   const float* depths, const int32_t* radii, int64_t count, int width, int height,
+                   int threads, TileBins& bins) {
   thread_local SortScratch scratch;
   bins.tiles_x = tiles_along(width);
   bins.tiles_y = tiles_along(height);
@@ -90,11 +97,26 @@ void bin_gaussians(const float* means2d, const float* depths, const int32_t* rad
   const int n_tiles = bins.num_tiles();
   const int32_t visible = int32_t(bins.order.size());
   std::vector<int64_t> counts(n_tiles + 1, 0);
+  thread_local std::vector<TileRect> rects;
+  rects.resize(visible);
   auto rect_of = [&](int32_t g) {
-    return tile_rect(means2d[2 * g], means2d[2 * g + 1], radii[g], bins.tiles_x, bins.tiles_y);
+    const double u = means2d[2 * g], v = means2d[2 * g + 1];
+    TileRect t = tile_rect(u, v, radii[g], bins.tiles_x, bins.tiles_y);
+    const SplatExtent e =
+        splat_extent(conics[3 * g], conics[3 * g + 1], conics[3 * g + 2], opacities[g]);
+    if (e.empty) return TileRect{0, 0, 0, 0};
+    // Pixel x (centre x + 0.5) is within ext_x of u for x in [u - ext_x - 0.5, u + ext_x - 0.5].
+    auto first = [](double lo, int n) {
+      return int(std::fmin(double(n), std::fmax(0.0, std::floor(lo / kTileSize))));
+    };
+    t.x0 = std::max(t.x0, first(u - e.ext_x - 0.5, bins.tiles_x));
+    t.x1 = std::min(t.x1, first(u + e.ext_x - 0.5, bins.tiles_x - 1) + 1);
+    t.y0 = std::max(t.y0, first(v - e.ext_y - 0.5, bins.tiles_y));
+    t.y1 = std::min(t.y1, first(v + e.ext_y - 0.5, bins.tiles_y - 1) + 1);
+    return t;
   };
   for (int32_t r = 0; r < visible; ++r) {
-    const TileRect t = rect_of(bins.order[r]);
+    const TileRect t = rects[r] = rect_of(bins.order[r]);
     for (int ty = t.y0; ty < t.y1; ++ty)
       for (int tx = t.x0; tx < t.x1; ++tx) ++counts[ty * bins.tiles_x + tx + 1];
   }
@@ -106,7 +128,7 @@ void bin_gaussians(const float* means2d, const float* depths, const int32_t* rad
   bins.ranks.resize(bins.offsets[n_tiles]);
   std::vector<int32_t> cursor(bins.offsets.begin(), bins.offsets.end() - 1);
   for (int32_t r = 0; r < visible; ++r) {
-    const TileRect t = rect_of(bins.order[r]);
+    const TileRect& t = rects[r];
     for (int ty = t.y0; ty < t.y1; ++ty)
       for (int tx = t.x0; tx < t.x1; ++tx) bins.ranks[cursor[ty * bins.tiles_x + tx]++] = r;
   }

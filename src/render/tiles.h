@@ -48,8 +48,12 @@ struct TileBins {
 };
 
 // Fills bins (buffers keep their capacity between calls). radii == 0 means
-// culled. means2d: [G, 2] pixels, depths: [G], radii: [G].
-void bin_gaussians(const float* means2d, const float* depths, const int32_t* radii, int64_t count,
-                   int width, int height, int threads, TileBins& bins);
+// culled. A Gaussian is listed in the tiles of its radius square (3DGS) that
+// its alpha >= 1/255 bounding box also touches: the other tiles could never
+// blend it. means2d: [G, 2] pixels, conics: [G, 3], opacities: [G],
+// depths: [G], radii: [G].
+void bin_gaussians(const float* means2d, const float* conics, const float* opacities,
+                   const float* depths, const int32_t* radii, int64_t count, int width, int height,
+                   int threads, TileBins& bins);
 
 }  // namespace ddhgs::render
