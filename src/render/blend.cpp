@@ -108,9 +108,10 @@ inline void or_lane_bits(uint64_t* dst, unsigned bits, uint64_t value) {
 // over each splat's ellipse, row span by row span, 8 pixels at a time. One
 // function for forward and backward, so the backward replays exactly the same
 // float operations. ranks[0, remaining) are valid (the rest of the tile's
-// list), ranks[0, m) form this chunk.
+// list), ranks[0, m) form this chunk. grad_rows ([V, np] in rank order, may
+// be null): the backward's colour gradient rows, prefetched like the colours.
 void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int remaining,
-                 int np, bool backward) {
+                 int np, bool backward, float* grad_rows = nullptr) {
   std::fill(s.pmask, s.pmask + kStride, uint64_t(0));
   if (backward) std::memset(s.gmask, 0, sizeof s.gmask);
   for (int k = 0; k < m; ++k) {
@@ -165,7 +166,10 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
         if (backward) s.gmask[k][p >> 6] |= uint64_t(bits.blend) << (p & 63);
       }
     }
-    if (any) prefetch_row(s.col_rows[k], np);
+    if (any) {
+      prefetch_row(s.col_rows[k], np);
+      if (grad_rows) prefetch_row(grad_rows + size_t(ranks[k]) * np, np);
+    }
   }
 }
 
@@ -310,7 +314,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
       for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
         const int32_t* ranks = bins.ranks.data() + b;
         const int m = std::min<int32_t>(kChunk, end - b);
-        blend_chunk(s, ranked, ranks, m, end - b, np, true);
+        blend_chunk(s, ranked, ranks, m, end - b, np, true, gcol);
         // dL/dcolors = W^T dL/dimage, Gaussian-major with register accumulators.
         for (int k = 0; k < m; ++k) {
           uint8_t pix[kPixels];

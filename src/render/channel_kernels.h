@@ -69,15 +69,33 @@ inline void gather_axpy_block(float* acc, const float* const* rows, int c, const
   for (int v = 0; v < V; ++v) _mm256_storeu_ps(acc + kLanes * v, a[v]);
 }
 
+// Sums of the lanes of s[0..8), as one vector: lane u holds sum(s[u]).
+inline __m256 lane_sums8(const __m256* s) {
+  const __m256 a = _mm256_hadd_ps(_mm256_hadd_ps(s[0], s[1]), _mm256_hadd_ps(s[2], s[3]));
+  const __m256 b = _mm256_hadd_ps(_mm256_hadd_ps(s[4], s[5]), _mm256_hadd_ps(s[6], s[7]));
+  return _mm256_add_ps(_mm256_permute2f128_ps(a, b, 0x20), _mm256_permute2f128_ps(a, b, 0x31));
+}
+
 template <int V>
 inline void gather_dot_block(const float* x, const float* const* rows, int c, const uint8_t* idx,
                              int count, float* out) {
   __m256 xv[V];
   for (int v = 0; v < V; ++v) xv[v] = _mm256_loadu_ps(x + kLanes * v);
-  for (int j = 0; j < count; ++j) {
+  auto dot = [&](int j) {
     const float* r = rows[idx[j]] + c;
     __m256 s = _mm256_mul_ps(xv[0], _mm256_loadu_ps(r));
     for (int v = 1; v < V; ++v) s = _mm256_fmadd_ps(xv[v], _mm256_loadu_ps(r + kLanes * v), s);
+    return s;
+  };
+  int j = 0;
+  // Eight rows at a time share one transposing horizontal sum.
+  for (; j + 8 <= count; j += 8) {
+    __m256 s[8];
+    for (int u = 0; u < 8; ++u) s[u] = dot(j + u);
+    _mm256_storeu_ps(out + j, _mm256_add_ps(_mm256_loadu_ps(out + j), lane_sums8(s)));
+  }
+  for (; j < count; ++j) {
+    const __m256 s = dot(j);
     const __m128 h = _mm_add_ps(_mm256_castps256_ps128(s), _mm256_extractf128_ps(s, 1));
     const __m128 h2 = _mm_add_ps(h, _mm_movehl_ps(h, h));
     out[j] += _mm_cvtss_f32(_mm_add_ss(h2, _mm_shuffle_ps(h2, h2, 1)));
