@@ -3,6 +3,9 @@
 //
 //   build/bench/bench_rasterizer [--quick | --only WIDTH HEIGHT G N]
 //
+// With DDHGS_BENCH_STAGES=1 it also prints CPU milliseconds of the forward's
+// stages (projection, binning, blending) next to the whole forward.
+//
 // Per scene: forward and backward milliseconds (median of several runs, with
 // autograd, as training uses them), Gaussian-pixel pairs blended per second,
 // blend GFLOP/s and its fraction of the torch::mm peak, and peak RSS. The
@@ -117,6 +120,29 @@ int64_t count_pairs(const Scene& s) {
       .pairs;
 }
 
+// CPU milliseconds of the forward's stages (median of reps), to see where the
+// time outside the blend goes: projection, binning, blending.
+void print_stages(const Scene& s, int reps) {
+  std::vector<double> project, bin, blend;
+  render::TileBins bins;
+  for (int rep = 0; rep <= reps; ++rep) {
+    double c0 = cpu_seconds();
+    const render::Projected p =
+        render::project_forward(s.means, s.log_scales, s.quats, s.logit_opacities, s.camera);
+    const double c1 = cpu_seconds();
+    render::bin_gaussians(p.means2d.data_ptr<float>(), p.conics.data_ptr<float>(),
+                          p.opacities.data_ptr<float>(), p.depths.data_ptr<float>(),
+                          p.radii.data_ptr<int32_t>(), p.means2d.size(0), s.camera.width,
+                          s.camera.height, core::thread_count(), bins);
+    const double c2 = cpu_seconds();
+    render::blend_forward(p, s.colors, s.background, bins, s.camera.width, s.camera.height, true);
+    const double c3 = cpu_seconds();
+    if (rep > 0) project.push_back(c1 - c0), bin.push_back(c2 - c1), blend.push_back(c3 - c2);
+  }
+  std::printf("stages (CPU ms): project %.1f, bin %.1f, blend %.1f\n", median(project) * 1e3,
+              median(bin) * 1e3, median(blend) * 1e3);
+}
+
 void run_scene(int width, int height, int64_t g, int64_t n, int reps, const Timing& peak) {
   const Scene s = make_scene(g, n, width, height);
   std::vector<torch::Tensor> leaves = {s.means, s.log_scales, s.quats, s.logit_opacities, s.colors};
@@ -149,6 +175,10 @@ void run_scene(int width, int height, int64_t g, int64_t n, int reps, const Timi
       pairs / f / 1e6, gflop_fwd / f, 100 * gflop_fwd / f / peak.wall,
       100 * gflop_all / (f + b) / peak.wall, 100 * gflop_fwd / fc / peak.cpu,
       100 * gflop_all / (fc + bc) / peak.cpu, peak_rss_mib());
+  if (std::getenv("DDHGS_BENCH_STAGES")) {
+    std::printf("forward (CPU ms) %.1f, backward %.1f; ", fc * 1e3, bc * 1e3);
+    print_stages(s, reps);
+  }
   std::fflush(stdout);
 }
 

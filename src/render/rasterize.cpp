@@ -1,7 +1,9 @@
 // Validation and the autograd wrapper around project -> bin -> blend.
 #include "render/rasterize.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <sstream>
 
 #include "core/error.h"
@@ -23,6 +25,19 @@ std::string shape_of(const Tensor& t) {
   return s.str();
 }
 
+// Every value finite. Float32 contiguous tensors (what training passes) are
+// checked in place: torch::isfinite would first build a [numel] bool tensor,
+// which took ~15 % of a forward at 100k x 128 colours.
+bool all_finite(const Tensor& t) {
+  if (t.scalar_type() != torch::kFloat32 || !t.is_contiguous())
+    return torch::isfinite(t).all().item<bool>();
+  const uint32_t* bits = static_cast<const uint32_t*>(t.data_ptr());
+  constexpr uint32_t kExponent = 0x7f800000u;  // all ones: infinity or NaN
+  uint32_t worst = 0;
+  for (int64_t i = 0, n = t.numel(); i < n; ++i) worst = std::max(worst, bits[i] & kExponent);
+  return worst != kExponent;
+}
+
 void require_shape(const Tensor& t, const char* name, std::initializer_list<int64_t> dims,
                    const std::string& expected) {
   core::require(t.defined(), std::string("rasterize: ") + name + " is missing");
@@ -36,7 +51,7 @@ void require_shape(const Tensor& t, const char* name, std::initializer_list<int6
                         shape_of(t));
   core::require(t.device().is_cpu() && t.is_floating_point(),
                 std::string("rasterize: ") + name + " must be a floating-point CPU tensor");
-  core::require(t.numel() == 0 || torch::isfinite(t).all().item<bool>(),
+  core::require(t.numel() == 0 || all_finite(t),
                 std::string("rasterize: ") + name + " contains NaN or infinite values");
 }
 
