@@ -1,11 +1,13 @@
 // `ddhgs eval RUN`: metrics of a trained run on its test views (or another
 // split), against the stored views and, for synthetic scenes, clean ground
-// truth; render speed.
+// truth; render speed. Runs that trained the diffusion denoiser are also
+// evaluated after denoising, per sampler setting (eval/denoised_eval.h).
 #include <filesystem>
 #include <iostream>
 
 #include "app/registry.h"
 #include "app/trained_run.h"
+#include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
 
 namespace ddhgs::app {
@@ -17,6 +19,9 @@ struct EvalArgs {
   std::string split = "test";
   int fps_repeats = 5;
   std::string data;
+  std::vector<int64_t> denoise_steps = {10, 25};
+  bool ddpm = false, no_denoise = false;
+  double start_strength = 0, eta = 0;
 };
 
 Action setup(CLI::App& parent) {
@@ -35,7 +40,21 @@ Action setup(CLI::App& parent) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
-  return [args] {
+  cmd->add_option("--denoise-steps", args->denoise_steps,
+                  "DDIM step counts K to evaluate the denoiser with (runs with denoiser.pt)")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_flag("--ddpm", args->ddpm,
+                "Also evaluate full ancestral DDPM sampling (every step below the start; slow)");
+  cmd->add_option("--start-strength", args->start_strength,
+                  "Start the reverse process from the render noised to this fraction of the "
+                  "schedule (1: pure noise; default diffusion.start_strength of the run)")
+      ->check(CLI::Range(1e-9, 1.0));
+  cmd->add_option("--eta", args->eta, "DDIM eta (0: deterministic; default diffusion.eta)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_flag("--no-denoise", args->no_denoise, "Evaluate the raw render only");
+  return [args, cmd] {
     TrainedRun run = open_trained_run(args->run, args->data);
     std::vector<int> views = eval::split_views(*run.scene, args->split);
     eval::EvalOptions options;
@@ -52,6 +71,21 @@ Action setup(CLI::App& parent) {
     eval::write_per_view_csv(per_view, report);
     std::cout << eval::format_report(report) << "wrote " << metrics.string() << " and "
               << per_view.string() << "\n";
+    if (!run.denoiser || args->no_denoise) return 0;
+
+    model::SamplerOptions sampler = run.sampler;
+    if (cmd->get_option("--start-strength")->count() > 0)
+      sampler.start_strength = args->start_strength;
+    if (cmd->get_option("--eta")->count() > 0) sampler.eta = args->eta;
+    auto settings = eval::denoise_settings(args->denoise_steps, args->ddpm, sampler);
+    eval::DenoisedReport denoised = eval::evaluate_denoised(
+        *run.scene, run.gaussians, run.background, *run.denoiser, views, args->split, settings);
+    fs::path denoised_json = out / ("denoised" + suffix + ".json");
+    fs::path denoised_csv = out / ("per_view_denoised" + suffix + ".csv");
+    eval::write_denoised_json(denoised_json, denoised);
+    eval::write_denoised_csv(denoised_csv, denoised);
+    std::cout << eval::format_denoised(denoised) << "wrote " << denoised_json.string() << " and "
+              << denoised_csv.string() << "\n";
     return 0;
   };
 }

@@ -1,11 +1,13 @@
 // `ddhgs render RUN`: a trained run's views, or an orbit around the scene, as
-// cubes and pictures (pseudo-RGB, a band or band range, error heatmaps).
+// cubes and pictures (pseudo-RGB, a band or band range, error heatmaps),
+// optionally after the run's diffusion denoiser (--denoise K).
 #include <filesystem>
 #include <iostream>
 
 #include "app/registry.h"
 #include "app/trained_run.h"
 #include "core/error.h"
+#include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
 #include "eval/render_frames.h"
 
@@ -25,6 +27,9 @@ struct RenderArgs {
   bool diff = false;
   double diff_max = 0.1;
   std::string data;
+  int64_t denoise = 0;
+  bool ddpm = false;
+  double start_strength = 0, eta = 0;
 };
 
 Action setup(CLI::App& parent) {
@@ -59,7 +64,20 @@ Action setup(CLI::App& parent) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
-  return [args] {
+  auto* denoise = cmd->add_option(
+      "--denoise", args->denoise,
+      "Denoise every render with the run's diffusion denoiser, DDIM with this many steps");
+  denoise->check(CLI::PositiveNumber);
+  cmd->add_flag("--ddpm", args->ddpm,
+                "Denoise with full ancestral DDPM sampling instead (every step; slow)")
+      ->excludes(denoise);
+  cmd->add_option("--start-strength", args->start_strength,
+                  "Start the reverse process from the render noised to this fraction of the "
+                  "schedule (1: pure noise; default diffusion.start_strength of the run)")
+      ->check(CLI::Range(1e-9, 1.0));
+  cmd->add_option("--eta", args->eta, "DDIM eta (0: deterministic; default diffusion.eta)")
+      ->check(CLI::Range(0.0, 1.0));
+  return [args, cmd] {
     TrainedRun run = open_trained_run(args->run, args->data);
     const io::Scene& scene = *run.scene;
     eval::RenderOptions options;
@@ -69,7 +87,23 @@ Action setup(CLI::App& parent) {
     options.diff = args->diff;
     options.diff_max = args->diff_max;
     std::string what = args->orbit > 0 ? "orbit" : args->split;
-    options.out_dir = args->out.empty() ? run.root / "renders" / what : fs::path(args->out);
+    std::string folder = what;
+    if (args->denoise > 0 || args->ddpm) {
+      core::require(run.denoiser.has_value(), run.root,
+                    "this run has no denoiser.pt (trained without loss.diffusion): drop --denoise");
+      model::SamplerOptions sampler = run.sampler;
+      sampler.method = args->ddpm ? model::SamplerMethod::Ddpm : model::SamplerMethod::Ddim;
+      if (args->denoise > 0) sampler.steps = args->denoise;
+      if (cmd->get_option("--start-strength")->count() > 0)
+        sampler.start_strength = args->start_strength;
+      if (cmd->get_option("--eta")->count() > 0) sampler.eta = args->eta;
+      sampler.validate(run.denoiser->schedule.steps, "--denoise");
+      options.transform = [&run, sampler](const torch::Tensor& image) {
+        return eval::denoise_render(*run.denoiser, image, sampler);
+      };
+      folder += args->ddpm ? "_ddpm" : "_ddim" + std::to_string(sampler.steps);
+    }
+    options.out_dir = args->out.empty() ? run.root / "renders" / folder : fs::path(args->out);
 
     std::vector<eval::Frame> frames =
         args->orbit > 0 ? eval::orbit_frames(scene, args->orbit)

@@ -6,6 +6,7 @@
 #include "core/log.h"
 #include "io/ply.h"
 #include "train/config.h"
+#include "train/diffusion_term.h"
 #include "train/run_folder.h"
 
 namespace ddhgs::app {
@@ -65,6 +66,16 @@ TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_ove
   check_model_matches_scene(paths.gaussians(), ply, *run.scene);
   run.gaussians = model::from_ply(ply);
   run.background = train::background(run.config, run.scene->bands());
+  const fs::path denoiser = train::denoiser_path(paths);
+  if (fs::exists(denoiser)) {
+    run.denoiser = train::read_denoiser(denoiser);
+    core::require(run.denoiser->unet->options().bands == run.scene->bands(), denoiser,
+                  "the denoiser has " + std::to_string(run.denoiser->unet->options().bands) +
+                      " bands but the dataset loads " + std::to_string(run.scene->bands()));
+    run.sampler =
+        train::diffusion_term_options(run.config, run.scene->bands(), paths.config().string())
+            .sampler;
+  }
   return run;
 }
 

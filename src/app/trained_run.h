@@ -7,9 +7,11 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "io/dataset.h"
+#include "model/diffusion.h"
 #include "model/gaussians.h"
 
 namespace ddhgs::app {
@@ -20,13 +22,18 @@ struct TrainedRun {
   std::unique_ptr<io::Scene> scene;
   model::Gaussians gaussians;
   torch::Tensor background;  // [N]
+  // RUN/denoiser.pt when the run trained the diffusion term, with the
+  // sampler defaults of its config (diffusion.sampler_steps, start_strength, eta).
+  std::optional<model::Denoiser> denoiser;
+  model::SamplerOptions sampler;
 };
 
 // data_override: a dataset folder to use instead of the config's data.path
 // (for a run folder copied to another machine). Throws core::Error naming the
 // file when the folder is not a run, its config is of another format_version,
 // gaussians.ply is missing or malformed, the dataset is missing, or the model
-// and dataset disagree in bands or wavelengths.
+// and dataset disagree in bands or wavelengths, or denoiser.pt is unreadable
+// or made for another band count.
 TrainedRun open_trained_run(const std::filesystem::path& run_dir,
                             const std::string& data_override = "");
 

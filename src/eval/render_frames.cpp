@@ -66,6 +66,7 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
     fs::path stem = options.out_dir / frame.name;
     torch::Tensor image =
         model::render_gaussians(gaussians, frame.camera, background).image;  // [H, W, N]
+    if (options.transform) image = options.transform(image);
     if (options.format == OutputFormat::Npy) {
       io::write_npy(stem.string() + ".npy", image);
       ++written;

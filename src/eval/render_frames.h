@@ -4,6 +4,7 @@
 #include <torch/torch.h>
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,9 @@ struct RenderOptions {
   // comparison (truth | render | error, with a colour bar under the error).
   bool diff = false;
   double diff_max = 0.1;  // reflectance error shown at the top of the colour map
+  // Applied to every render before it is written (e.g. the diffusion
+  // denoiser); [H, W, N] -> [H, W, N]. Empty: the raw render.
+  std::function<torch::Tensor(const torch::Tensor& image)> transform;
 };
 
 // Frames for the views of a split, named by their file stems.

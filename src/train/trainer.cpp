@@ -44,6 +44,8 @@ uint64_t mix(uint64_t seed, uint64_t stream) {
 // Stream ids: 0 initialisation, 2 e + 1 the view order of epoch e, 2 i the
 // densification of iteration i, kTermStream + i the loss terms of iteration i.
 constexpr uint64_t kTermStream = uint64_t(1) << 40;
+// The denoiser U-Net's initial weights (beyond every iteration's term stream).
+constexpr uint64_t kDenoiserInitStream = uint64_t(1) << 41;
 
 model::DensifyOptions densify_options(const json& d) {
   model::DensifyOptions o;
@@ -85,8 +87,6 @@ void Trainer::load_scene() {
   const json& loss = config_.at("loss");
   losses_ = baseline_losses(loss.at("l1").get<double>(), loss.at("dssim").get<double>());
   losses_.push_back(spectral_term(loss));
-  if (loss.at("diffusion").get<double>() != 0)
-    core::log_warn("loss.diffusion is not part of this trainer yet; the term is left out");
   build_modules();
 }
 
@@ -106,6 +106,13 @@ void Trainer::build_modules() {
     encoder_ = model::WavelengthEncoder(o);
     wavelengths01_ = model::normalise_wavelengths(scene_->wavelengths_nm);
     add_module("wavelength_encoder", encoder_.ptr(), we.at("lr").get<double>());
+  }
+  const auto diffusion = diffusion_term_options(config_, scene_->bands(), "config");
+  if (diffusion.enabled()) {
+    diffusion_ = std::make_unique<DiffusionTerm>(
+        diffusion, mix(config_.at("seed").get<uint64_t>(), kDenoiserInitStream));
+    add_module("denoiser", diffusion_->denoiser().unet.ptr(), diffusion.lr);
+    losses_.push_back(diffusion_->loss_term());
   }
 }
 
@@ -304,6 +311,7 @@ void Trainer::write_outputs(double seconds) {
       {"densify_added", state_.meta["densify_added"]},
       {"densify_removed", state_.meta["densify_removed"]}};
   summary.update(test_psnr());
+  if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
   io::write_file_atomically(run_.summary(), summary.dump(2) + "\n");
 }
 

@@ -13,6 +13,7 @@
 #include "model/gaussians.h"
 #include "model/wavelength_encoder.h"
 #include "train/checkpoint.h"
+#include "train/diffusion_term.h"
 #include "train/losses.h"
 #include "train/run_folder.h"
 
@@ -75,7 +76,8 @@ class Trainer {
   torch::Tensor background_;  // [N]
   double extent_ = 1;
   model::WavelengthEncoder encoder_{nullptr};
-  torch::Tensor wavelengths01_;  // [N] the encoder's input
+  std::unique_ptr<DiffusionTerm> diffusion_;  // loss.diffusion > 0
+  torch::Tensor wavelengths01_;               // [N] the encoder's input
   bool replacing_ = false;
 };
 

@@ -1,0 +1,84 @@
+// The DD-HGS joint-training term (paper "End-to-End Joint Training"): after a
+// warm-up of plain Gaussian training, every iteration draws a diffusion step t
+// and noise eps, noises the ground-truth view to X_t and adds
+//   w4 * || eps - eps_theta(X_t, t | X_3DGS) ||^2
+// on one random crop shared by the render and the ground truth. Gradients
+// reach the U-Net (its own Adam groups and learning rate, see
+// Trainer::add_module) and, through the condition X_3DGS, the Gaussians.
+// Config: loss.diffusion (w4) and the "diffusion" section of the preset.
+#pragma once
+#include <torch/torch.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "model/diffusion.h"
+#include "train/losses.h"
+#include "train/run_folder.h"
+
+namespace ddhgs::train {
+
+struct DiffusionTermOptions {
+  double weight = 0;           // loss.diffusion (paper w4 = 0.3); 0: no denoiser
+  int64_t warmup = 0;          // iterations of Gaussians only before the term starts
+  int64_t crop_px = 64;        // side of the random square crop (<= 0: whole view)
+  double lr = 2e-4;            // the U-Net's Adam learning rate
+  bool condition_grad = true;  // let the term's gradient reach the render (paper: yes)
+  // Std (data units, reflectance) of Gaussian noise added to the condition
+  // during training only, so the U-Net also sees renders worse than those of
+  // training views (which the Gaussians fit closely); 0 = paper.
+  double condition_noise = 0;
+  model::UNetOptions unet;  // bands set from the data
+  int64_t schedule_steps = 1000;
+  model::BetaSchedule schedule = model::BetaSchedule::Linear;
+  double beta_start = 1e-4, beta_end = 0.02;
+  // Inference defaults for eval and render (flags override).
+  model::SamplerOptions sampler;
+
+  bool enabled() const { return weight > 0; }
+};
+
+// Reads loss.diffusion and the "diffusion" section of a resolved config.
+// Throws core::Error naming `where` on bad values.
+DiffusionTermOptions diffusion_term_options(const nlohmann::json& config, int64_t bands,
+                                            const std::string& where);
+
+// Holds the denoiser being trained; the trainer registers unet() as a module
+// and appends loss_term().
+class DiffusionTerm {
+ public:
+  // The U-Net's initial weights come from `init_seed` (its last layer is zero,
+  // so the term starts as a pure eps-prediction task and does not disturb the
+  // Gaussians at its first step).
+  DiffusionTerm(const DiffusionTermOptions& options, uint64_t init_seed);
+
+  // "diffusion": zero (and no graph) before the warm-up ends; afterwards the
+  // eps MSE on a crop, with t, eps and the crop drawn from LossInputs::seed.
+  LossTerm loss_term();
+
+  model::Denoiser& denoiser() { return *denoiser_; }
+  const DiffusionTermOptions& options() const { return options_; }
+
+ private:
+  DiffusionTermOptions options_;
+  std::shared_ptr<model::Denoiser> denoiser_;  // shared with the loss closure
+};
+
+// One training evaluation of the term (what loss_term() computes after the
+// warm-up): view_diffusion_loss on a crop with the options' condition handling.
+torch::Tensor diffusion_term_loss(model::Denoiser& denoiser, const DiffusionTermOptions& options,
+                                  const torch::Tensor& render,  // [H, W, N]
+                                  const torch::Tensor& target,  // [H, W, N]
+                                  uint64_t seed);
+
+// RUN/denoiser.pt, beside gaussians.ply.
+std::filesystem::path denoiser_path(const RunPaths& run);
+
+// The trained U-Net and its schedule, written atomically.
+void write_denoiser(const std::filesystem::path& path, model::Denoiser& denoiser);
+// Throws core::Error naming the file when it is missing or malformed.
+model::Denoiser read_denoiser(const std::filesystem::path& path);
+
+}  // namespace ddhgs::train
