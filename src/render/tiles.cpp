@@ -51,28 +51,40 @@ void radix_sort(SortScratch& s) {
   }
 }
 
-// Tiles in serpentine row order (left to right, then right to left), cut
-// into one contiguous run per thread of about equal cost. Consecutive tiles
-// are neighbours and share most of their Gaussians, so a tile finds the splat
-// records and colour rows of the previous one still in cache. Deterministic,
-// so backward gradient sums per thread are reproducible run to run.
+// Tiles in bands of kBand tile rows, each band walked column by column in
+// serpentine order (down one column, up the next; bands alternate left to
+// right and right to left), cut into one contiguous run per thread of about
+// equal cost. Consecutive tiles are neighbours, and a tile's neighbours in
+// both directions were rendered at most 2 kBand tiles earlier, so the splat
+// records and colour rows they share are still in cache. Deterministic, so
+// backward gradient sums per thread are reproducible run to run.
 void assign_tiles(int threads, TileBins& bins) {
+  constexpr int kBand = 4;  // tile rows
   const int n = bins.num_tiles();
+  std::vector<int32_t> walk;
+  walk.reserve(n);
+  for (int band = 0; band * kBand < bins.tiles_y; ++band) {
+    const int y0 = band * kBand, y1 = std::min(bins.tiles_y, y0 + kBand);
+    for (int i = 0; i < bins.tiles_x; ++i) {
+      const int tx = band % 2 == 0 ? i : bins.tiles_x - 1 - i;
+      for (int j = 0; j < y1 - y0; ++j) {
+        const int ty = (i % 2 == 0) ? y0 + j : y1 - 1 - j;
+        walk.push_back(ty * bins.tiles_x + tx);
+      }
+    }
+  }
   auto cost = [&](int t) { return int64_t(bins.offsets[t + 1] - bins.offsets[t]) + 1; };
   int64_t total = 0;
   for (int t = 0; t < n; ++t) total += cost(t);
   bins.thread_tiles.resize(threads);
   for (auto& list : bins.thread_tiles) list.clear();
   int64_t done = 0;
-  for (int ty = 0; ty < bins.tiles_y; ++ty)
-    for (int i = 0; i < bins.tiles_x; ++i) {
-      const int t = ty * bins.tiles_x + (ty % 2 == 0 ? i : bins.tiles_x - 1 - i);
-      // The thread whose share of the total cost holds this tile's midpoint.
-      const int k =
-          int(std::min<int64_t>(threads - 1, (2 * done + cost(t)) * threads / (2 * total)));
-      bins.thread_tiles[k].push_back(t);
-      done += cost(t);
-    }
+  for (const int t : walk) {
+    // The thread whose share of the total cost holds this tile's midpoint.
+    const int k = int(std::min<int64_t>(threads - 1, (2 * done + cost(t)) * threads / (2 * total)));
+    bins.thread_tiles[k].push_back(t);
+    done += cost(t);
+  }
 }
 
 }  // namespace
