@@ -55,6 +55,15 @@ inline PixelSums pixel_sums(const float* d, const float* image, float t, const f
   return s;
 }
 
+// row + c, opaque to the optimiser: otherwise GCC hoists the V offsets
+// c + 8 v out of the loop as separate registers and, short of registers,
+// spills them to vector registers and moves them back for every row.
+inline const float* row_at(const float* row, int c) {
+  const float* r = row + c;
+  __asm__("" : "+r"(r));
+  return r;
+}
+
 template <int V>
 inline void gather_axpy_block(float* acc, const float* const* rows, int c, const uint8_t* idx,
                               const float* w, int count, bool accumulate) {
@@ -62,7 +71,7 @@ inline void gather_axpy_block(float* acc, const float* const* rows, int c, const
   for (int v = 0; v < V; ++v)
     a[v] = accumulate ? _mm256_loadu_ps(acc + kLanes * v) : _mm256_setzero_ps();
   for (int j = 0; j < count; ++j) {
-    const float* r = rows[idx[j]] + c;
+    const float* r = row_at(rows[idx[j]], c);
     const __m256 wj = _mm256_set1_ps(w[j]);
     for (int v = 0; v < V; ++v) a[v] = _mm256_fmadd_ps(wj, _mm256_loadu_ps(r + kLanes * v), a[v]);
   }
@@ -82,7 +91,7 @@ inline void gather_dot_block(const float* x, const float* const* rows, int c, co
   __m256 xv[V];
   for (int v = 0; v < V; ++v) xv[v] = _mm256_loadu_ps(x + kLanes * v);
   auto dot = [&](int j) {
-    const float* r = rows[idx[j]] + c;
+    const float* r = row_at(rows[idx[j]], c);
     __m256 s = _mm256_mul_ps(xv[0], _mm256_loadu_ps(r));
     for (int v = 1; v < V; ++v) s = _mm256_fmadd_ps(xv[v], _mm256_loadu_ps(r + kLanes * v), s);
     return s;
