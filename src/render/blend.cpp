@@ -363,7 +363,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
             if (raw > kMaxAlpha) continue;  // clamped: no gradient to o or power
             const float dx = sp.mx - px, dy = sp.my - py;
             const float d_power = -d_alpha_j * raw;
-            geo[k][kOpacity] += d_alpha_j * raw / sp.opacity;
+            geo[k][kOpacity] += d_alpha_j * raw;  // divided by o once per Gaussian below
             geo[k][kMx] += d_power * (sp.a * dx + sp.b * dy);
             geo[k][kMy] += d_power * (sp.b * dx + sp.c * dy);
             geo[k][kConA] += 0.5f * d_power * dx * dx;
@@ -371,8 +371,12 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
             geo[k][kConC] += 0.5f * d_power * dy * dy;
           }
         }
-        for (int k = 0; k < m; ++k)
+        for (int k = 0; k < m; ++k) {
+          // d alpha / d o = exp(-power) = raw / o; Gaussians without pairs
+          // (possibly o = 0) keep their zero.
+          if (geo[k][kOpacity] != 0) geo[k][kOpacity] /= ranked.splats[ranks[k]].opacity;
           for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ranks[k]) * kSlots + q] += geo[k][q];
+        }
       }
     }
   }
