@@ -88,22 +88,6 @@ int clip(float v, int lo, int hi) {
   return v < float(lo) ? lo : v > float(hi) ? hi : int(v);
 }
 
-// dst[i] |= value for each bit i of bits (i < 8).
-inline void or_lane_bits(uint64_t* dst, unsigned bits, uint64_t value) {
-#if defined(__AVX2__)
-  const __m256i b = _mm256_set1_epi64x(bits), v = _mm256_set1_epi64x(int64_t(value));
-  const __m256i lo = _mm256_setr_epi64x(1, 2, 4, 8), hi = _mm256_setr_epi64x(16, 32, 64, 128);
-  auto* d = reinterpret_cast<__m256i*>(dst);
-  const __m256i m_lo = _mm256_and_si256(_mm256_cmpeq_epi64(_mm256_and_si256(b, lo), lo), v);
-  const __m256i m_hi = _mm256_and_si256(_mm256_cmpeq_epi64(_mm256_and_si256(b, hi), hi), v);
-  _mm256_storeu_si256(d, _mm256_or_si256(_mm256_loadu_si256(d), m_lo));
-  _mm256_storeu_si256(d + 1, _mm256_or_si256(_mm256_loadu_si256(d + 1), m_hi));
-#else
-  for (int i = 0; i < kRowLanes; ++i)
-    if (bits >> i & 1) dst[i] |= value;
-#endif
-}
-
 // The 3DGS per-pixel recurrence for one chunk of depth ranks, Gaussian-major
 // over each splat's ellipse, row span by row span, 8 pixels at a time. One
 // function for forward and backward, so the backward replays exactly the same

@@ -145,4 +145,20 @@ inline RowBits blend_row(const Splat& g, int x, int count, float dy, const RowSt
 }
 #endif
 
+// Per-pixel masks of a run: dst[i] |= value for each bit i of bits (i < 8).
+inline void or_lane_bits(uint64_t* dst, unsigned bits, uint64_t value) {
+#if defined(__AVX2__) && defined(__FMA__)
+  const __m256i b = _mm256_set1_epi64x(bits), v = _mm256_set1_epi64x(int64_t(value));
+  const __m256i lo = _mm256_setr_epi64x(1, 2, 4, 8), hi = _mm256_setr_epi64x(16, 32, 64, 128);
+  auto* d = reinterpret_cast<__m256i*>(dst);
+  const __m256i m_lo = _mm256_and_si256(_mm256_cmpeq_epi64(_mm256_and_si256(b, lo), lo), v);
+  const __m256i m_hi = _mm256_and_si256(_mm256_cmpeq_epi64(_mm256_and_si256(b, hi), hi), v);
+  _mm256_storeu_si256(d, _mm256_or_si256(_mm256_loadu_si256(d), m_lo));
+  _mm256_storeu_si256(d + 1, _mm256_or_si256(_mm256_loadu_si256(d + 1), m_hi));
+#else
+  for (int i = 0; i < kRowLanes; ++i)
+    if (bits >> i & 1) dst[i] |= value;
+#endif
+}
+
 }  // namespace ddhgs::render
