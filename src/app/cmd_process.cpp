@@ -28,7 +28,7 @@ Action setup(CLI::App& parent) {
                   "exhaustive (any capture) or sequential (views in capture order)")
       ->capture_default_str();
   cmd->add_option("--camera-model", args->colmap.camera_model,
-                  "PINHOLE or SIMPLE_PINHOLE (one camera for all views)")
+                  "SIMPLE_PINHOLE (square pixels) or PINHOLE (fx, fy); one camera for all views")
       ->capture_default_str();
   cmd->add_option("--pseudo-rgb", args->pseudo_rgb,
                   "cie[:D65|A|E], bands:R,G,B (nm) or matrix:FILE (3 rows of N weights)")

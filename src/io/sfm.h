@@ -76,11 +76,13 @@ Stretch write_pseudo_rgb_images(const CubeSet& cubes, const core::PseudoRgbOptio
 // --- COLMAP -----------------------------------------------------------------
 
 struct ColmapOptions {
-  std::string binary;                    // empty: $DDHGS_COLMAP, else colmap on PATH
-  std::string matcher = "exhaustive";    // or "sequential"
-  std::string camera_model = "PINHOLE";  // PINHOLE or SIMPLE_PINHOLE
-  std::vector<std::string> settings;     // "Section.key=value", routed by section
-  int threads = 1;                       // COLMAP's num_threads for every stage
+  std::string binary;                  // empty: $DDHGS_COLMAP, else colmap on PATH
+  std::string matcher = "exhaustive";  // or "sequential"
+  // SIMPLE_PINHOLE (one focal length) by default: on a turntable capture a
+  // PINHOLE fit let fy drift 46 % from fx (docs/benchmarks.md).
+  std::string camera_model = "SIMPLE_PINHOLE";  // or PINHOLE
+  std::vector<std::string> settings;            // "Section.key=value", routed by section
+  int threads = 1;                              // COLMAP's num_threads for every stage
 };
 
 // Checks matcher and camera model (distorting models are refused: the

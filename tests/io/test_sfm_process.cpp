@@ -118,7 +118,7 @@ TEST(SfmProcess, WritesATrainableSceneAndListsUnregisteredViews) {
   EXPECT_EQ(listing(f.root), (std::vector<std::string>{"cubes", "fake-colmap", "model", "scene"}));
   std::string log = read_file(f.out / "colmap.log");
   EXPECT_TRUE(contains(log, "fake feature_extractor")) << log;
-  EXPECT_TRUE(contains(log, "--ImageReader.camera_model 'PINHOLE'")) << log;
+  EXPECT_TRUE(contains(log, "--ImageReader.camera_model 'SIMPLE_PINHOLE'")) << log;
   EXPECT_TRUE(contains(log, "--SiftMatching.use_gpu '0'")) << log;
   auto summary = nlohmann::json::parse(read_file(f.out / "process.json"));
   EXPECT_EQ(summary["unregistered"], nlohmann::json::array({"v3"}));
