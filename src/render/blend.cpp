@@ -63,7 +63,7 @@ struct TileScratch {
 // tile is blended. Colour rows are requested only for Gaussians that blend at
 // least one pixel (see blend_chunk): most of a tile's list misses its pixels,
 // and prefetching every row stalls on fill buffers.
-constexpr int kSplatLookahead = 16;  // Gaussians
+constexpr int kSplatLookahead = 32;  // Gaussians
 
 void prefetch_tile_head(const Ranked& ranked, const TileBins& bins, int tile) {
   const int32_t begin = bins.offsets[tile];
