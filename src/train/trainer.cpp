@@ -310,6 +310,11 @@ void Trainer::write_outputs(double seconds) {
       {"peak_rss_mib", peak_rss_mib()},
       {"densify_added", state_.meta["densify_added"]},
       {"densify_removed", state_.meta["densify_removed"]}};
+  if (offsets.defined()) {
+    // How far the encoder moved the SH coefficients, to judge its effect.
+    summary["wavelength_offsets_abs_max"] = offsets.abs().max().item<double>();
+    summary["wavelength_offsets_rms"] = offsets.pow(2).mean().sqrt().item<double>();
+  }
   summary.update(test_psnr());
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
   io::write_file_atomically(run_.summary(), summary.dump(2) + "\n");

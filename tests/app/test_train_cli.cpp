@@ -117,6 +117,8 @@ TEST(TrainCli, WavelengthEncoderTrainsResumesAndIsBakedIntoThePly) {
   // The encoder changes the model...
   EXPECT_NE(io::read_file(off / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
   EXPECT_EQ(read_json(straight / "config.json")["wavelength_encoder"]["enabled"], true);
+  EXPECT_GT(read_json(straight / "train_summary.json")["wavelength_offsets_abs_max"].get<double>(),
+            0.0);
 
   // ...its weights and optimizer state resume bit for bit...
   ASSERT_EQ(train(scene().string() + " --out " + split.string() + args + " --iterations 60", &out),
