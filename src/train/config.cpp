@@ -156,6 +156,29 @@ json load_preset(const std::string& name_or_path) {
   return config;
 }
 
+namespace {
+
+void add_missing(const json& schema, json& config, const std::string& prefix,
+                 std::vector<std::string>& added) {
+  for (const auto& [key, value] : schema.items()) {
+    const std::string path = prefix.empty() ? key : prefix + "." + key;
+    if (!config.contains(key)) {
+      config[key] = value;
+      added.push_back(path);
+    } else if (value.is_object() && config[key].is_object()) {
+      add_missing(value, config[key], path, added);
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> add_missing_keys(json& config) {
+  std::vector<std::string> added;
+  if (config.is_object()) add_missing(schema(), config, "", added);
+  return added;
+}
+
 void validate_config(const json& config, const std::string& source) {
   if (!config.is_object()) throw core::Error(source, "expected a JSON object");
   check_version(config, source);

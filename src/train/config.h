@@ -10,6 +10,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "io/dataset.h"
 
@@ -25,6 +26,12 @@ std::filesystem::path config_dir();
 // with its "extends" chain resolved and every key validated. The result has
 // every key of default.json and no "extends".
 nlohmann::json load_preset(const std::string& name_or_path);
+
+// Adds the keys of default.json that `config` lacks, with their default
+// values: keys introduced after an older run was made. Every new component
+// defaults to off, so the older run keeps its behaviour. Returns the dotted
+// names of the keys added.
+std::vector<std::string> add_missing_keys(nlohmann::json& config);
 
 // Validates a resolved config (e.g. a run's config.json) read from `source`.
 void validate_config(const nlohmann::json& config, const std::string& source);

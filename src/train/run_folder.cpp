@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/log.h"
 #include "io/atomic_file.h"
 #include "train/config.h"
 
@@ -50,6 +51,13 @@ nlohmann::json read_run_config(const RunPaths& run) {
   if (!fs::exists(run.config())) throw core::Error(run.config(), "missing: not a ddhgs run folder");
   nlohmann::json config = nlohmann::json::parse(io::read_file(run.config()), nullptr, false);
   if (config.is_discarded()) throw core::Error(run.config(), "not valid JSON");
+  const auto added = add_missing_keys(config);
+  if (!added.empty()) {
+    std::string names;
+    for (const auto& key : added) names += (names.empty() ? "" : ", ") + key;
+    core::log_info(run.config().string() +
+                   ": made by an older ddhgs; new keys take their defaults (" + names + ")");
+  }
   validate_config(config, run.config().string());
   return config;
 }

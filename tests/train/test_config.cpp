@@ -5,6 +5,7 @@
 #include "core/error.h"
 #include "support/test_support.h"
 #include "train/config.h"
+#include "train/run_folder.h"
 
 using namespace ddhgs;
 
@@ -120,5 +121,25 @@ TEST(Config, ResolvedConfigMustBeComplete) {
   EXPECT_NE(error_of([&] {
               train::validate_config(c, "run/config.json");
             }).find("missing key 'densify.every'"),
+            std::string::npos);
+}
+
+TEST(Config, OlderRunConfigsTakeDefaultsForKeysAddedLater) {
+  // A run made before the wavelength encoder existed: its section is missing
+  // and a changed value elsewhere must survive.
+  auto c = train::load_preset("default");
+  c.erase("wavelength_encoder");
+  c["densify"].erase("every");
+  c["iterations"] = 1234;
+  auto dir = test::temp_dir("old_run_config");
+  std::ofstream(dir / "config.json") << c.dump(2);
+  auto read = train::read_run_config({dir});
+  EXPECT_EQ(read["iterations"], 1234);
+  EXPECT_EQ(read["wavelength_encoder"], train::load_preset("default")["wavelength_encoder"]);
+  EXPECT_EQ(read["densify"]["every"], train::load_preset("default")["densify"]["every"]);
+  // Keys that are there keep being checked.
+  c["iterations"] = "many";
+  std::ofstream(dir / "config.json") << c.dump(2);
+  EXPECT_NE(error_of([&] { train::read_run_config({dir}); }).find("'iterations' must be"),
             std::string::npos);
 }
