@@ -208,7 +208,9 @@ torch::Tensor sample_point_spectra(const ColmapModel& model, const CubeSet& cube
 
 ProcessResult process_cubes(const ProcessOptions& options) {
   auto start = std::chrono::steady_clock::now();
-  const fs::path& out = options.out;
+  // "scene/" names the folder scene: the temporary sibling needs its name.
+  fs::path out = options.out.lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();
   const bool run_sfm = options.poses.empty();
   if (run_sfm) check_colmap_options(options.colmap);
   if (fs::exists(out)) {

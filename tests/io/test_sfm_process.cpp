@@ -107,7 +107,9 @@ std::vector<std::string> listing(const fs::path& dir) {
 
 TEST(SfmProcess, WritesATrainableSceneAndListsUnregisteredViews) {
   Fixture f = make_fixture("sfm_process_ok", 3);
-  ProcessResult r = process_cubes(options_for(f, fake_colmap(f.root, f.model)));
+  ProcessOptions o = options_for(f, fake_colmap(f.root, f.model));
+  o.out = f.out.string() + "/";  // a trailing slash names the same folder
+  ProcessResult r = process_cubes(o);
   EXPECT_EQ(r.views, 4);
   EXPECT_EQ(r.registered, 3);
   EXPECT_EQ(r.unregistered, std::vector<std::string>{"v3"});
