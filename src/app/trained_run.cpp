@@ -4,6 +4,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "io/atomic_file.h"
 #include "io/ply.h"
 #include "train/config.h"
 #include "train/diffusion_term.h"
@@ -47,6 +48,23 @@ void check_model_matches_scene(const fs::path& ply_path, const io::GaussianPly& 
                       " nm in the dataset");
 }
 
+torch::Tensor read_learned_background(const fs::path& path, int64_t bands) {
+  core::require(fs::exists(path), path,
+                "missing: the run learned its background (model.learn_background) but did not "
+                "finish writing it");
+  auto j = nlohmann::json::parse(io::read_file(path), nullptr, false);
+  core::require(j.is_object() && j.contains("background") && j["background"].is_array() &&
+                    int64_t(j["background"].size()) == bands,
+                path, "expected {\"background\": [" + std::to_string(bands) + " numbers]}");
+  std::vector<float> values;
+  for (const auto& v : j["background"]) {
+    core::require(v.is_number() && std::isfinite(v.get<double>()), path,
+                  "background values must be finite numbers");
+    values.push_back(v.get<float>());
+  }
+  return torch::tensor(values);
+}
+
 }  // namespace
 
 TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_override) {
@@ -66,6 +84,8 @@ TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_ove
   check_model_matches_scene(paths.gaussians(), ply, *run.scene);
   run.gaussians = model::from_ply(ply);
   run.background = train::background(run.config, run.scene->bands());
+  if (run.config.at("model").at("learn_background").get<bool>())
+    run.background = read_learned_background(paths.learned_background(), run.scene->bands());
   const fs::path denoiser = train::denoiser_path(paths);
   if (fs::exists(denoiser)) {
     run.denoiser = train::read_denoiser(denoiser);

@@ -107,6 +107,14 @@ void Trainer::build_modules() {
     wavelengths01_ = model::normalise_wavelengths(scene_->wavelengths_nm);
     add_module("wavelength_encoder", encoder_.ptr(), we.at("lr").get<double>());
   }
+  if (config_.at("model").at("learn_background").get<bool>()) {
+    // A constant backdrop is otherwise drawn by Gaussians wherever the
+    // training views leave room, e.g. right in front of a held-out camera.
+    background_module_ = std::make_shared<torch::nn::Module>();
+    background_ = background_module_->register_parameter("value", background_.clone());
+    add_module("background", background_module_,
+               config_.at("optim").at("background_lr").get<double>());
+  }
   const auto diffusion = diffusion_term_options(config_, scene_->bands(), "config");
   if (diffusion.enabled()) {
     diffusion_ = std::make_unique<DiffusionTerm>(
@@ -317,6 +325,14 @@ void Trainer::write_outputs(double seconds) {
   }
   summary.update(test_psnr());
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
+  if (background_module_) {
+    // eval, render and report take it from here (config.json stays as the
+    // run was configured, so the run can be reproduced from it).
+    auto values = background_.detach().contiguous();
+    json learned = {{"background", std::vector<float>(values.data_ptr<float>(),
+                                                      values.data_ptr<float>() + values.numel())}};
+    io::write_file_atomically(run_.learned_background(), learned.dump(2) + "\n");
+  }
   io::write_file_atomically(run_.summary(), summary.dump(2) + "\n");
 }
 

@@ -78,6 +78,8 @@ class Trainer {
   model::WavelengthEncoder encoder_{nullptr};
   std::unique_ptr<DiffusionTerm> diffusion_;  // loss.diffusion > 0
   torch::Tensor wavelengths01_;               // [N] the encoder's input
+  // Holds background_ as a trained parameter when model.learn_background is on.
+  std::shared_ptr<torch::nn::Module> background_module_;
   bool replacing_ = false;
 };
 

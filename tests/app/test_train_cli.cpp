@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "io/atomic_file.h"
+#include "io/cube.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -81,6 +82,17 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
 
   auto config = read_json(straight / "config.json");
   EXPECT_EQ(config["format_version"], 1);
+  // The demo preset learns the background: the constant backdrop of the synth
+  // scene (its clean cubes' top rows are all backdrop) is recovered, from 0.
+  EXPECT_EQ(config["model"]["learn_background"], true);
+  auto learned = torch::tensor(
+      read_json(straight / "background.json")["background"].get<std::vector<float>>());
+  auto clean = io::cube_to_float(io::read_cube(scene() / "clean" / "r_000.npy"));
+  auto backdrop = clean.select(0, 0).mean(0);  // [N]
+  ASSERT_EQ(learned.size(0), backdrop.size(0));
+  EXPECT_LT((learned - backdrop).abs().max().item<double>(),
+            0.1 * backdrop.abs().max().item<double>())
+      << learned << backdrop;
   EXPECT_EQ(config["data"]["path"], fs::absolute(scene()).lexically_normal().string());
   EXPECT_EQ(config["densify"]["every"], 30);
 
