@@ -11,11 +11,14 @@ out="${1:-runs/demo}"
 "$ddhgs" synth --preset demo --out "$out/scene" --force
 "$ddhgs" info "$out/scene"
 "$ddhgs" train "$out/scene" --out "$out/run" --preset demo --force
-"$ddhgs" eval "$out/run"
+"$ddhgs" eval "$out/run" | tee "$out/eval.txt"
 "$ddhgs" render "$out/run" --split test --diff
 "$ddhgs" report "$out/run"
 
 cat <<MSG
+
+Test views (clean = noise-free ground truth, views = the captured noisy views):
+$(grep -E "^ *(truth|views|clean) " "$out/eval.txt")
 
 Done. Look at:
   $out/run/report/index.html     interactive report (metrics, curves, spectral viewer)
