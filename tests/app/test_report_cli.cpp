@@ -204,8 +204,8 @@ TEST_F(ReportCli, BadInputsGiveOneClearLineAndTouchNothing) {
 
   // A broken metrics.jsonl is named with its line.
   fs::path broken = test::temp_dir("report_cli_broken_run");
-  for (const char* f : {"config.json", "gaussians.ply", "train_summary.json"})
-    fs::copy_file(*run_ / f, broken / f);
+  for (const char* f : {"config.json", "gaussians.ply", "train_summary.json", "background.json"})
+    if (fs::exists(*run_ / f)) fs::copy_file(*run_ / f, broken / f);
   io::write_file_atomically(broken / "metrics.jsonl",
                             "{\"iter\": 1, \"loss\": 0.5}\n{\"iter\": 2,\n");
   EXPECT_EQ(ddhgs("report " + broken.string(), &out), 1);
