@@ -8,7 +8,8 @@
 #   scripts/process_benchmark.sh [BUILD_DIR]     (default build; needs test_app)
 # Overrides: DDHGS_PROCESS_SYNTH (ddhgs synth flags), DDHGS_PROCESS_ARGS
 # (ddhgs process flags), DDHGS_PROCESS_TRAIN (ddhgs train flags),
-# DDHGS_PROCESS_MAX_ROTATION_DEG and DDHGS_PROCESS_MAX_POSITION_PCT (bars).
+# DDHGS_PROCESS_MAX_ROTATION_DEG, DDHGS_PROCESS_MAX_POSITION_PCT and
+# DDHGS_PROCESS_MAX_PSNR_GAP (bars).
 # About 15 minutes on 2 busy cores.
 set -euo pipefail
 cd "$(dirname "$0")/.."
