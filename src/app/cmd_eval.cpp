@@ -21,7 +21,7 @@ struct EvalArgs {
   std::string data;
   std::vector<int64_t> denoise_steps = {10, 25};
   bool ddpm = false, no_denoise = false;
-  double start_strength = 0, eta = 0;
+  SamplerFlags sampler;
 };
 
 Action setup(CLI::App& parent) {
@@ -47,14 +47,9 @@ Action setup(CLI::App& parent) {
       ->capture_default_str();
   cmd->add_flag("--ddpm", args->ddpm,
                 "Also evaluate full ancestral DDPM sampling (every step below the start; slow)");
-  cmd->add_option("--start-strength", args->start_strength,
-                  "Start the reverse process from the render noised to this fraction of the "
-                  "schedule (1: pure noise; default diffusion.start_strength of the run)")
-      ->check(CLI::Range(1e-9, 1.0));
-  cmd->add_option("--eta", args->eta, "DDIM eta (0: deterministic; default diffusion.eta)")
-      ->check(CLI::Range(0.0, 1.0));
+  add_sampler_flags(cmd, args->sampler);
   cmd->add_flag("--no-denoise", args->no_denoise, "Evaluate the raw render only");
-  return [args, cmd] {
+  return [args] {
     TrainedRun run = open_trained_run(args->run, args->data);
     std::vector<int> views = eval::split_views(*run.scene, args->split);
     eval::EvalOptions options;
@@ -73,11 +68,8 @@ Action setup(CLI::App& parent) {
               << per_view.string() << "\n";
     if (!run.denoiser || args->no_denoise) return 0;
 
-    model::SamplerOptions sampler = run.sampler;
-    if (cmd->get_option("--start-strength")->count() > 0)
-      sampler.start_strength = args->start_strength;
-    if (cmd->get_option("--eta")->count() > 0) sampler.eta = args->eta;
-    auto settings = eval::denoise_settings(args->denoise_steps, args->ddpm, sampler);
+    auto settings = eval::denoise_settings(args->denoise_steps, args->ddpm,
+                                           sampler_options(run, args->sampler));
     eval::DenoisedReport denoised = eval::evaluate_denoised(
         *run.scene, run.gaussians, run.background, *run.denoiser, views, args->split, settings);
     fs::path denoised_json = out / ("denoised" + suffix + ".json");

@@ -29,7 +29,7 @@ struct RenderArgs {
   std::string data;
   int64_t denoise = 0;
   bool ddpm = false;
-  double start_strength = 0, eta = 0;
+  SamplerFlags sampler;
 };
 
 Action setup(CLI::App& parent) {
@@ -71,13 +71,8 @@ Action setup(CLI::App& parent) {
   cmd->add_flag("--ddpm", args->ddpm,
                 "Denoise with full ancestral DDPM sampling instead (every step; slow)")
       ->excludes(denoise);
-  cmd->add_option("--start-strength", args->start_strength,
-                  "Start the reverse process from the render noised to this fraction of the "
-                  "schedule (1: pure noise; default diffusion.start_strength of the run)")
-      ->check(CLI::Range(1e-9, 1.0));
-  cmd->add_option("--eta", args->eta, "DDIM eta (0: deterministic; default diffusion.eta)")
-      ->check(CLI::Range(0.0, 1.0));
-  return [args, cmd] {
+  add_sampler_flags(cmd, args->sampler);
+  return [args] {
     TrainedRun run = open_trained_run(args->run, args->data);
     const io::Scene& scene = *run.scene;
     eval::RenderOptions options;
@@ -91,12 +86,9 @@ Action setup(CLI::App& parent) {
     if (args->denoise > 0 || args->ddpm) {
       core::require(run.denoiser.has_value(), run.root,
                     "this run has no denoiser.pt (trained without loss.diffusion): drop --denoise");
-      model::SamplerOptions sampler = run.sampler;
+      model::SamplerOptions sampler = sampler_options(run, args->sampler);
       sampler.method = args->ddpm ? model::SamplerMethod::Ddpm : model::SamplerMethod::Ddim;
       if (args->denoise > 0) sampler.steps = args->denoise;
-      if (cmd->get_option("--start-strength")->count() > 0)
-        sampler.start_strength = args->start_strength;
-      if (cmd->get_option("--eta")->count() > 0) sampler.eta = args->eta;
       sampler.validate(run.denoiser->schedule.steps, "--denoise");
       options.transform = [&run, sampler](const torch::Tensor& image) {
         return eval::denoise_render(*run.denoiser, image, sampler);

@@ -67,6 +67,24 @@ torch::Tensor read_learned_background(const fs::path& path, int64_t bands) {
 
 }  // namespace
 
+void add_sampler_flags(CLI::App* cmd, SamplerFlags& flags) {
+  flags.start_strength_option =
+      cmd->add_option("--start-strength", flags.start_strength,
+                      "Start the reverse process from the render noised to this fraction of the "
+                      "schedule (1: pure noise; default diffusion.start_strength of the run)")
+          ->check(CLI::Range(1e-9, 1.0));
+  flags.eta_option =
+      cmd->add_option("--eta", flags.eta, "DDIM eta (0: deterministic; default diffusion.eta)")
+          ->check(CLI::Range(0.0, 1.0));
+}
+
+model::SamplerOptions sampler_options(const TrainedRun& run, const SamplerFlags& flags) {
+  model::SamplerOptions sampler = run.sampler;
+  if (flags.start_strength_option->count() > 0) sampler.start_strength = flags.start_strength;
+  if (flags.eta_option->count() > 0) sampler.eta = flags.eta;
+  return sampler;
+}
+
 TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_override) {
   core::require(fs::is_directory(run_dir), run_dir,
                 "not a folder (expected a run folder written by ddhgs train)");

@@ -3,6 +3,7 @@
 // Gaussians, with the checks that they belong together.
 #pragma once
 #include <torch/torch.h>
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
@@ -27,6 +28,16 @@ struct TrainedRun {
   std::optional<model::Denoiser> denoiser;
   model::SamplerOptions sampler;
 };
+
+// --start-strength and --eta, shared by `ddhgs eval` and `ddhgs render`.
+struct SamplerFlags {
+  double start_strength = 0, eta = 0;
+  CLI::Option* start_strength_option = nullptr;
+  CLI::Option* eta_option = nullptr;
+};
+void add_sampler_flags(CLI::App* cmd, SamplerFlags& flags);
+// The run's sampler defaults (TrainedRun::sampler) with the flags that were given.
+model::SamplerOptions sampler_options(const TrainedRun& run, const SamplerFlags& flags);
 
 // data_override: a dataset folder to use instead of the config's data.path
 // (for a run folder copied to another machine). Throws core::Error naming the
