@@ -7,7 +7,7 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "error_text.h"
+#include "support/error_text.h"
 #include "io/atomic_file.h"
 #include "io/colmap.h"
 #include "support/test_support.h"

@@ -6,7 +6,7 @@
 #include <thread>
 
 #include "core/error.h"
-#include "error_text.h"
+#include "support/error_text.h"
 #include "io/atomic_file.h"
 #include "io/colmap.h"
 #include "io/dataset.h"

@@ -8,7 +8,7 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "error_text.h"
+#include "support/error_text.h"
 #include "io/image.h"
 #include "io/sfm.h"
 #include "support/test_support.h"

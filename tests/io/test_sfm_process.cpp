@@ -8,7 +8,7 @@
 #include <cmath>
 #include <fstream>
 
-#include "error_text.h"
+#include "support/error_text.h"
 #include "io/atomic_file.h"
 #include "io/dataset.h"
 #include "io/sfm.h"

@@ -3,6 +3,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "support/error_text.h"
 #include "support/test_support.h"
 #include "train/config.h"
 #include "train/run_folder.h"
@@ -15,14 +16,7 @@ void write(const std::filesystem::path& p, const std::string& text) {
   std::ofstream(p) << text;
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const core::Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using test::error_of;
 
 }  // namespace
 

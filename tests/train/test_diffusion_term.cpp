@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "io/atomic_file.h"
+#include "support/error_text.h"
 #include "support/test_support.h"
 #include "train/config.h"
 #include "train/diffusion_term.h"
@@ -17,14 +18,7 @@ namespace {
 using train::DiffusionTerm;
 using train::DiffusionTermOptions;
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const core::Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using test::error_of;
 
 DiffusionTermOptions tiny_options(int64_t bands, int64_t crop_px) {
   DiffusionTermOptions o;

@@ -1,4 +1,4 @@
-// Error-message helpers for the dataset, COLMAP and transforms tests.
+// Error-message helpers shared by the tests that check core::Error messages.
 #pragma once
 #include <string>
 
