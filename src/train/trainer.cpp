@@ -37,12 +37,11 @@ class SigintGuard {
   void (*previous_)(int);
 };
 
-uint64_t mix(uint64_t seed, uint64_t stream) {
-  return mix_seed(seed, stream);
-}
-
 // Stream ids: 0 initialisation, 2 e + 1 the view order of epoch e, 2 i the
 // densification of iteration i, kTermStream + i the loss terms of iteration i.
+// The wavelength encoder's initial weights use stream 1, which it shares with
+// epoch 0's view order (different consumers; kept so existing runs reproduce).
+constexpr uint64_t kEncoderInitStream = 1;
 constexpr uint64_t kTermStream = uint64_t(1) << 40;
 // The denoiser U-Net's initial weights (beyond every iteration's term stream).
 constexpr uint64_t kDenoiserInitStream = uint64_t(1) << 41;
@@ -102,7 +101,7 @@ void Trainer::build_modules() {
     const int degree = config_.at("model").at("sh_degree").get<int>();
     o.sh_coeffs = (degree + 1) * (degree + 1);
     // Its initial weights come from the run's seed (the last layer is zero).
-    torch::manual_seed(mix(config_.at("seed").get<uint64_t>(), 1));
+    torch::manual_seed(mix_seed(config_.at("seed").get<uint64_t>(), kEncoderInitStream));
     encoder_ = model::WavelengthEncoder(o);
     wavelengths01_ = model::normalise_wavelengths(scene_->wavelengths_nm);
     add_module("wavelength_encoder", encoder_.ptr(), we.at("lr").get<double>());
@@ -118,7 +117,7 @@ void Trainer::build_modules() {
   const auto diffusion = diffusion_term_options(config_, scene_->bands(), "config");
   if (diffusion.enabled()) {
     diffusion_ = std::make_unique<DiffusionTerm>(
-        diffusion, mix(config_.at("seed").get<uint64_t>(), kDenoiserInitStream));
+        diffusion, mix_seed(config_.at("seed").get<uint64_t>(), kDenoiserInitStream));
     add_module("denoiser", diffusion_->denoiser().unet.ptr(), diffusion.lr);
     losses_.push_back(diffusion_->loss_term());
   }
@@ -170,7 +169,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   options.neighbours = init.at("neighbours").get<int>();
   options.colour_views = init.at("colour_views").get<int>();
   options.sh_degree = config.at("model").at("sh_degree").get<int>();
-  options.seed = mix(config.at("seed").get<uint64_t>(), 0);
+  options.seed = mix_seed(config.at("seed").get<uint64_t>(), 0);
   t->state_.gaussians = initialise_gaussians(*t->scene_, options);
   t->state_.stats.reset(t->state_.gaussians.size());
   t->state_.meta = {{"densify_added", 0}, {"densify_removed", 0}, {"seconds", 0.0}};
@@ -207,7 +206,7 @@ int Trainer::view_for(int64_t iteration) const {
   const int64_t n = int64_t(scene_->train.size());
   const int64_t epoch = (iteration - 1) / n, position = (iteration - 1) % n;
   auto generator = at::make_generator<at::CPUGeneratorImpl>(
-      mix(config_.at("seed").get<uint64_t>(), uint64_t(2 * epoch + 1)));
+      mix_seed(config_.at("seed").get<uint64_t>(), uint64_t(2 * epoch + 1)));
   auto order = torch::randperm(n, generator, torch::kInt64);
   return scene_->train[size_t(order[position].item<int64_t>())];
 }
@@ -226,7 +225,7 @@ void Trainer::step(int64_t iteration, json& record) {
   auto out = model::render_gaussians(g, camera, background_, band_offsets(), sink);
   LossValues loss = evaluate_losses(
       losses_, {out.image, target, view, iteration,
-                mix(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration))});
+                mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration))});
   loss.total.backward();
 
   const json& d = config_.at("densify");
@@ -241,7 +240,7 @@ void Trainer::step(int64_t iteration, json& record) {
     const int64_t reset_every = d.at("opacity_reset_every").get<int64_t>();
     if (iteration > d.at("from_iter").get<int64_t>() && every(iteration, d.at("every"))) {
       auto generator = at::make_generator<at::CPUGeneratorImpl>(
-          mix(config_.at("seed").get<uint64_t>(), uint64_t(2 * iteration)));
+          mix_seed(config_.at("seed").get<uint64_t>(), uint64_t(2 * iteration)));
       const int64_t before = g.size();
       auto r = model::densify_and_prune(g, state_.adam, state_.stats, densify_options(d), extent_,
                                         reset_every > 0 && iteration > reset_every, generator);
