@@ -7,9 +7,9 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "support/error_text.h"
 #include "io/atomic_file.h"
 #include "io/colmap.h"
+#include "support/error_text.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

@@ -6,12 +6,12 @@
 #include <thread>
 
 #include "core/error.h"
-#include "support/error_text.h"
 #include "io/atomic_file.h"
 #include "io/colmap.h"
 #include "io/dataset.h"
 #include "io/image.h"
 #include "io/transforms.h"
+#include "support/error_text.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

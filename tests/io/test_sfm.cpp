@@ -8,9 +8,9 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "support/error_text.h"
 #include "io/image.h"
 #include "io/sfm.h"
+#include "support/error_text.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

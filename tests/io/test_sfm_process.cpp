@@ -8,10 +8,10 @@
 #include <cmath>
 #include <fstream>
 
-#include "support/error_text.h"
 #include "io/atomic_file.h"
 #include "io/dataset.h"
 #include "io/sfm.h"
+#include "support/error_text.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {
