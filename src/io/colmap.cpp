@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "io/ply.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
@@ -143,6 +144,24 @@ core::Camera colmap_camera(const ColmapModel& model, const ColmapImage& image) {
   camera.world_to_camera =
       core::Mat4::from(core::quat_to_rotation(q[0], q[1], q[2], q[3]), image.tvec);
   return camera;
+}
+
+PointCloud colmap_points(const ColmapModel& model) {
+  PointCloud cloud;
+  const int64_t n = int64_t(model.points.size());
+  if (n == 0) return cloud;
+  cloud.xyz = torch::empty({n, 3}, torch::kFloat32);
+  cloud.rgb = torch::empty({n, 3}, torch::kUInt8);
+  auto xyz = cloud.xyz.accessor<float, 2>();
+  auto rgb = cloud.rgb.accessor<uint8_t, 2>();
+  for (int64_t i = 0; i < n; ++i) {
+    const auto& p = model.points[size_t(i)];
+    xyz[i][0] = float(p.xyz.x);
+    xyz[i][1] = float(p.xyz.y);
+    xyz[i][2] = float(p.xyz.z);
+    for (int c = 0; c < 3; ++c) rgb[i][c] = p.rgb[size_t(c)];
+  }
+  return cloud;
 }
 
 }  // namespace ddhgs::io

@@ -77,4 +77,9 @@ core::Intrinsics colmap_intrinsics(const ColmapCamera& camera);
 // World-to-camera (OpenCV) of image; core::Error when its camera is missing.
 core::Camera colmap_camera(const ColmapModel& model, const ColmapImage& image);
 
+struct PointCloud;  // io/ply.h
+// The model's 3D points as xyz [P, 3] float32 and rgb [P, 3] uint8 (no
+// spectra); an empty cloud when the model has no points.
+PointCloud colmap_points(const ColmapModel& model);
+
 }  // namespace ddhgs::io

@@ -211,22 +211,7 @@ Found from_colmap(const fs::path& root, const fs::path& model_dir, const LoadOpt
     found.views.push_back(std::move(c));
   }
 
-  if (!model.points.empty()) {
-    int64_t n = int64_t(model.points.size());
-    torch::Tensor xyz = torch::empty({n, 3}, torch::kFloat);
-    torch::Tensor rgb = torch::empty({n, 3}, torch::kUInt8);
-    auto x = xyz.accessor<float, 2>();
-    auto c = rgb.accessor<uint8_t, 2>();
-    for (int64_t i = 0; i < n; ++i) {
-      const auto& p = model.points[size_t(i)];
-      x[i][0] = float(p.xyz.x);
-      x[i][1] = float(p.xyz.y);
-      x[i][2] = float(p.xyz.z);
-      for (int k = 0; k < 3; ++k) c[i][k] = p.rgb[size_t(k)];
-    }
-    found.points.xyz = xyz;
-    found.points.rgb = rgb;
-  }
+  found.points = colmap_points(model);
   return found;
 }
 

@@ -73,21 +73,8 @@ ColmapModel largest_colmap_model(const fs::path& sparse) {
 }
 
 PointCloud points_of(const ColmapModel& model, const CubeSet& cubes) {
-  PointCloud cloud;
-  const int64_t n = int64_t(model.points.size());
-  if (n == 0) return cloud;
-  cloud.xyz = torch::empty({n, 3}, torch::kFloat32);
-  cloud.rgb = torch::empty({n, 3}, torch::kUInt8);
-  auto xyz = cloud.xyz.accessor<float, 2>();
-  auto rgb = cloud.rgb.accessor<uint8_t, 2>();
-  for (int64_t i = 0; i < n; ++i) {
-    const auto& p = model.points[size_t(i)];
-    xyz[i][0] = float(p.xyz.x);
-    xyz[i][1] = float(p.xyz.y);
-    xyz[i][2] = float(p.xyz.z);
-    for (int c = 0; c < 3; ++c) rgb[i][c] = p.rgb[size_t(c)];
-  }
-  cloud.spectra = sample_point_spectra(model, cubes);
+  PointCloud cloud = colmap_points(model);
+  if (!model.points.empty()) cloud.spectra = sample_point_spectra(model, cubes);
   return cloud;
 }
 
