@@ -65,6 +65,11 @@ struct TileScratch {
 // and prefetching every row stalls on fill buffers.
 constexpr int kSplatLookahead = 32;  // Gaussians
 
+// Pixels added to each side of a row span. The span's float rounding and that
+// of the per-pixel dx are ~1e-4 px at 640 px wide images; the 1e-3 of power
+// margin already covers most of it.
+constexpr float kSpanSlack = 1.0f / 16;
+
 void prefetch_tile_head(const Ranked& ranked, const TileBins& bins, int tile) {
   const int32_t begin = bins.offsets[tile];
   const int32_t end = std::min(bins.offsets[tile + 1], begin + kSplatLookahead);
@@ -112,15 +117,10 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
     const int yb = clip(std::ceil(g.my + g.ext_y - 0.5f) + 1, s.y0, s.y1);
     // Row span where power <= skip_power + 1e-3: the roots in dx of
     // 0.5 a dx^2 + b dy dx + 0.5 c dy^2 - power, i.e. dx = -(b / a) dy +- hw,
-    // hw^2 = 2 power / a - (det / a^2) dy^2, widened by a pixel so the exact
-    // per-pixel test, not float rounding here, decides. The coefficients
-    // come from double; the extra 1e-3 of power keeps the float rounding of
-    // hw^2 (~1e-6 / a) on the safe side.
-    const double inv_a = 1.0 / double(g.a);
-    const double det = double(g.a) * g.c - double(g.b) * g.b;
-    const float k0 = float(2 * (double(g.skip_power) + 1e-3) * inv_a);
-    const float k1 = float(det * inv_a * inv_a);
-    const float k2 = float(double(g.b) * inv_a);
+    // hw^2 = 2 power / a - (det / a^2) dy^2 (coefficients from set_extent),
+    // widened by kSpanSlack so that the exact per-pixel test, not float
+    // rounding here, decides.
+    const float k0 = g.span_k0, k1 = g.span_k1, k2 = g.span_k2;
     const uint64_t kbit = uint64_t(1) << k;
     float* weight = s.weight + k * kStride;
     float* raw = s.raw + k * kStride;
@@ -132,8 +132,8 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
       if (!(hw2 >= 0)) continue;
       const float hw = std::sqrt(hw2);
       const float centre = g.mx - 0.5f + k2 * dy;  // pixel x where power is least
-      const int xr0 = clip(std::floor(centre - hw) - 1, xa, xb);
-      const int xr1 = clip(std::ceil(centre + hw) + 2, xa, xb);
+      const int xr0 = clip(std::ceil(centre - hw - kSpanSlack), xa, xb);
+      const int xr1 = clip(std::floor(centre + hw + kSpanSlack) + 1, xa, xb);
       const int row = s.pixel(0, y);
       for (int x = xr0; x < xr1; x += kRowLanes) {
         const int p = row + x;

@@ -31,11 +31,10 @@ const Ranked& rank_gaussians(const Projected& p, const torch::Tensor& colors, co
         std::fill(ranked_colors + r * np + n, ranked_colors + (r + 1) * np, 0.0f);
       }
       Splat& s = splats[r];
-      s = {m[2 * i], m[2 * i + 1], con[3 * i], con[3 * i + 1], con[3 * i + 2], op[i], dep[i],
-           -1,       -1,           -1};
-      const SplatExtent e = splat_extent(s.a, s.b, s.c, s.opacity);
-      if (e.empty) continue;
-      s.skip_power = e.skip_power, s.ext_x = e.ext_x, s.ext_y = e.ext_y;
+      s.mx = m[2 * i], s.my = m[2 * i + 1];
+      s.a = con[3 * i], s.b = con[3 * i + 1], s.c = con[3 * i + 2];
+      s.opacity = op[i], s.depth = dep[i];
+      set_extent(s);
     }
   });
   cache.rows = copy ? ranked_colors : col;

@@ -18,11 +18,14 @@ constexpr float kMinAlpha = 1.0f / 255.0f;
 constexpr float kMaxAlpha = 0.99f;
 constexpr float kMinTransmittance = 1e-4f;
 
-// Per-Gaussian screen data the inner loop reads, packed for locality.
-struct Splat {
+// Per-Gaussian screen data the inner loop reads, one cache line each.
+struct alignas(64) Splat {
   float mx, my, a, b, c, opacity, depth;
   float skip_power;    // power beyond which alpha < 1/255 for sure
   float ext_x, ext_y;  // half extents (px) of the region with alpha >= 1/255
+  // Row span where power <= skip_power + 1e-3, from double (see row_span):
+  // span_k0 = 2 (skip_power + 1e-3) / a, span_k1 = det / a^2, span_k2 = b / a.
+  float span_k0, span_k1, span_k2;
 };
 
 // Where a splat can reach alpha >= 1/255: o exp(-power) >= 1/255 <=> power <=
@@ -42,6 +45,25 @@ inline SplatExtent splat_extent(float a, float b, float c, float opacity) {
   const double power = thr + 1e-3;  // margin well above float rounding
   return {float(power), float(std::sqrt(2 * power * c / det) + 1),
           float(std::sqrt(2 * power * a / det) + 1), false};
+}
+
+// Fills a splat's extent and span coefficients; s.a, s.b, s.c and s.opacity
+// must be set. A splat that never reaches 1/255 gets ext_x = -1.
+inline void set_extent(Splat& s) {
+  const SplatExtent e = splat_extent(s.a, s.b, s.c, s.opacity);
+  if (e.empty) {
+    s.skip_power = s.ext_x = s.ext_y = -1;
+    s.span_k0 = s.span_k1 = s.span_k2 = 0;
+    return;
+  }
+  s.skip_power = e.skip_power, s.ext_x = e.ext_x, s.ext_y = e.ext_y;
+  // The extra 1e-3 of power keeps the float rounding of the span (~1e-6 / a
+  // in hw^2) on the safe side.
+  const double inv_a = 1.0 / double(s.a);
+  const double det = double(s.a) * s.c - double(s.b) * s.b;
+  s.span_k0 = float(2 * (double(e.skip_power) + 1e-3) * inv_a);
+  s.span_k1 = float(det * inv_a * inv_a);
+  s.span_k2 = float(double(s.b) * inv_a);
 }
 
 // Per-pixel state of a run of 8 pixels, each pointer at the run's first
