@@ -18,28 +18,27 @@ namespace {
 
 constexpr int kPixels = kTileSize * kTileSize;
 constexpr int kChunk = 64;  // Gaussians per chunk: one bit each in a 64-bit pixel mask
-// Per-pixel rows padded so that 8-lane loads and stores at a row's last pixel
-// stay inside the array.
-constexpr int kStride = kPixels + kRowLanes;
+constexpr int kGroupsPerRow = kTileSize / kRowLanes;
+constexpr int kGroups = kPixels / kRowLanes;  // 8-pixel groups of a tile, row-major
 // Per-Gaussian gradient slots accumulated by the blender.
 enum Slot { kMx, kMy, kConA, kConB, kConC, kOpacity, kDepth, kSlots = 8 };
 
 // Per-thread scratch for one tile; thread_local in the OpenMP workers, so it
 // is allocated once and reused by every later call. Per-pair values of a
-// chunk are stored densely, [Gaussian][pixel], as whole 8-pixel runs (no
+// chunk are stored densely, [Gaussian][pixel], as whole 8-pixel groups (no
 // per-pair scalar work while blending); bit masks say which entries are real.
 struct TileScratch {
   int x0, y0, x1, y1, ndone, npix;
-  float T[kStride];
-  uint8_t done[kStride];
-  uint64_t pmask[kStride];               // bit k: chunk Gaussian k blends pixel p
-  uint64_t gmask[kChunk][kPixels / 64];  // backward: pixels each chunk Gaussian blends
-  float weight[kChunk * kStride];        // alpha * T
-  float raw[kChunk * kStride];           // backward: o exp(-power) before the 0.99 clamp
-  float trans[kChunk * kStride];         // backward: T before the pair
-  const float* col_rows[kChunk];         // colour row of each chunk Gaussian
-  float depth[kChunk];                   // camera z of each chunk Gaussian
-  const float* pix_rows[kPixels];        // row of acc for each pixel
+  alignas(32) float T[kPixels];
+  alignas(32) uint64_t pmask[kPixels];         // bit k: chunk Gaussian k blends pixel p
+  alignas(32) float weight[kChunk * kPixels];  // alpha * T
+  alignas(32) float raw[kChunk * kPixels];     // backward: o exp(-power) before the 0.99 clamp
+  alignas(32) float trans[kChunk * kPixels];   // backward: T before the pair
+  uint64_t gmask[kChunk][kPixels / 64];        // backward: pixels each chunk Gaussian blends
+  uint8_t live[kGroups];                       // per group: lanes not stopped and inside the image
+  const float* col_rows[kChunk];               // colour row of each chunk Gaussian
+  float depth[kChunk];                         // camera z of each chunk Gaussian
+  const float* pix_rows[kPixels];              // row of acc for each pixel
   std::vector<float> acc;    // [kPixels, np] colour sums (forward) or dL/dimage (backward)
   uint8_t touched[kPixels];  // forward: acc row holds a sum (rows are not zeroed up front)
 
@@ -48,8 +47,12 @@ struct TileScratch {
     x1 = std::min(width, x0 + kTileSize), y1 = std::min(height, y0 + kTileSize);
     npix = (x1 - x0) * (y1 - y0);
     ndone = 0;
-    std::fill(T, T + kStride, 1.0f);
-    std::fill(done, done + kStride, uint8_t(0));
+    std::fill(T, T + kPixels, 1.0f);
+    for (int g = 0; g < kGroups; ++g) {
+      const int y = y0 + g / kGroupsPerRow, x = x0 + g % kGroupsPerRow * kRowLanes;
+      const int lanes = y < y1 ? std::clamp(x1 - x, 0, kRowLanes) : 0;
+      live[g] = uint8_t((1u << lanes) - 1);
+    }
     acc.resize(size_t(kPixels) * np);
     std::fill(touched, touched + kPixels, uint8_t(0));
     for (int p = 0; p < kPixels; ++p) pix_rows[p] = acc.data() + size_t(p) * np;
@@ -93,20 +96,24 @@ int clip(float v, int lo, int hi) {
   return v < float(lo) ? lo : v > float(hi) ? hi : int(v);
 }
 
-// The 3DGS per-pixel recurrence for one chunk of depth ranks, Gaussian-major
-// over each splat's ellipse, row span by row span, 8 pixels at a time. One
-// function for forward and backward, so the backward replays exactly the same
-// float operations. ranks[0, remaining) are valid (the rest of the tile's
-// list), ranks[0, m) form this chunk. grad_rows ([V, np] in rank order, may
-// be null): the backward's colour gradient rows, prefetched like the colours.
+// The 3DGS per-pixel recurrence for one chunk of depth ranks. First each
+// splat's ellipse, row span by row span, marks the 8-pixel groups it may
+// reach; then each group runs through its splats in depth order
+// (blend_group). One function for forward and backward, so the backward
+// replays exactly the same float operations. ranks[0, remaining) are valid
+// (the rest of the tile's list), ranks[0, m) form this chunk. grad_rows
+// ([V, np] in rank order, may be null): the backward's colour gradient rows,
+// prefetched like the colours.
 void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int remaining,
                  int np, bool backward, float* grad_rows = nullptr) {
-  std::fill(s.pmask, s.pmask + kStride, uint64_t(0));
   if (backward) std::memset(s.gmask, 0, sizeof s.gmask);
+  uint64_t members[kGroups] = {};  // bit k: chunk Gaussian k may reach the group
+  const Splat* splats[kChunk];
   for (int k = 0; k < m; ++k) {
     if (k + kSplatLookahead < remaining)
       __builtin_prefetch(&ranked.splats[ranks[k + kSplatLookahead]]);
     const Splat& g = ranked.splats[ranks[k]];
+    splats[k] = &g;
     s.col_rows[k] = ranked.row(ranks[k], np);
     s.depth[k] = g.depth;
     if (g.ext_x < 0) continue;
@@ -122,10 +129,7 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
     // rounding here, decides.
     const float k0 = g.span_k0, k1 = g.span_k1, k2 = g.span_k2;
     const uint64_t kbit = uint64_t(1) << k;
-    float* weight = s.weight + k * kStride;
-    float* raw = s.raw + k * kStride;
-    float* trans = s.trans + k * kStride;
-    unsigned any = 0;
+    bool hit = false;
     for (int y = ya; y < yb; ++y) {
       const float dy = g.my - (float(y) + 0.5f);
       const float hw2 = k0 - k1 * dy * dy;
@@ -134,26 +138,37 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
       const float centre = g.mx - 0.5f + k2 * dy;  // pixel x where power is least
       const int xr0 = clip(std::ceil(centre - hw - kSpanSlack), xa, xb);
       const int xr1 = clip(std::floor(centre + hw + kSpanSlack) + 1, xa, xb);
-      const int row = s.pixel(0, y);
-      for (int x = xr0; x < xr1; x += kRowLanes) {
-        const int p = row + x;
-        const RowState st{s.T + p, s.done + p, weight + p, backward ? raw + p : nullptr, trans + p};
-        const RowBits bits = blend_row(g, x, std::min(kRowLanes, xr1 - x), dy, st);
-        for (unsigned stop = bits.stop; stop; stop &= stop - 1) {
-          s.done[p + __builtin_ctz(stop)] = 1;
-          ++s.ndone;
-        }
-        if (!bits.blend) continue;
-        any |= bits.blend;
-        or_lane_bits(s.pmask + p, bits.blend, kbit);
-        // A run stays inside its 16-pixel row, so inside one 64-pixel word.
-        if (backward) s.gmask[k][p >> 6] |= uint64_t(bits.blend) << (p & 63);
-      }
+      if (xr0 >= xr1) continue;
+      uint64_t* row = members + (y - s.y0) * kGroupsPerRow;
+      row[(xr0 - s.x0) / kRowLanes] |= kbit;
+      row[(xr1 - 1 - s.x0) / kRowLanes] |= kbit;
+      hit = true;
     }
-    if (any) {
+    if (hit) {
       prefetch_row(s.col_rows[k], np);
       if (grad_rows) prefetch_row(grad_rows + size_t(ranks[k]) * np, np);
     }
+  }
+  for (int gr = 0; gr < kGroups; ++gr) {
+    const int p = gr * kRowLanes;
+    if (members[gr] == 0 || s.live[gr] == 0) {
+      std::fill(s.pmask + p, s.pmask + p + kRowLanes, uint64_t(0));
+      continue;
+    }
+    GroupState st{s.T + p, s.live[gr], s.pmask + p};
+    const PairStores out{s.weight + p,
+                         backward ? s.raw + p : nullptr,
+                         s.trans + p,
+                         kPixels,
+                         backward ? &s.gmask[0][0] : nullptr,
+                         kPixels / 64,
+                         p / 64,
+                         p % 64};
+    const float px0 = float(s.x0 + gr % kGroupsPerRow * kRowLanes) + 0.5f;
+    const float py = float(s.y0 + gr / kGroupsPerRow) + 0.5f;
+    blend_group(splats, members[gr], px0, py, st, out);
+    s.ndone += __builtin_popcount(s.live[gr] & ~st.live);
+    s.live[gr] = uint8_t(st.live);
   }
 }
 
@@ -163,7 +178,7 @@ int pixel_pairs(const TileScratch& s, int p, uint8_t* gauss, float* weight) {
   for (uint64_t bits = s.pmask[p]; bits; bits &= bits - 1, ++c) {
     const int k = __builtin_ctzll(bits);
     gauss[c] = uint8_t(k);
-    weight[c] = s.weight[k * kStride + p];
+    weight[c] = s.weight[k * kPixels + p];
   }
   return c;
 }
@@ -319,7 +334,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
             for (uint64_t bits = s.gmask[k][word]; bits; bits &= bits - 1, ++c) {
               const int p = word * 64 + __builtin_ctzll(bits);
               pix[c] = uint8_t(p);
-              weight[c] = s.weight[k * kStride + p];
+              weight[c] = s.weight[k * kPixels + p];
             }
           if (c == 0) continue;
           kernels::gather_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows, np, pix, weight, c);
@@ -337,7 +352,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
           for (int j = 0; j < c; ++j) {
             const int k = gauss[j];
             const Splat& sp = ranked.splats[ranks[k]];
-            const float w = weight[j], raw = s.raw[k * kStride + p], t = s.trans[k * kStride + p];
+            const float w = weight[j], raw = s.raw[k * kPixels + p], t = s.trans[k * kPixels + p];
             const float g = gdot[j] + sp.depth * dd[p];
             geo[k][kDepth] += w * dd[p];
             prefix[p] += double(g) * w;

@@ -1,6 +1,6 @@
-// One splat blended into a run of up to 8 pixels of a row: the scalar heart
-// of blending (power, exp, alpha, the 1/255 test, the transmittance step),
-// vectorised over pixels. Internal to the render layer; forward and backward
+// A group of 8 pixels of a row blended with a list of splats: the scalar
+// heart of blending (power, exp, alpha, the 1/255 test, the transmittance
+// step), vectorised over pixels. Internal to the render layer; forward and backward
 // share it, so the backward replays the forward's decisions bit for bit.
 #pragma once
 #include <cmath>
@@ -13,7 +13,7 @@
 
 namespace ddhgs::render {
 
-constexpr int kRowLanes = 8;  // pixels of a row evaluated together
+constexpr int kRowLanes = 8;  // pixels of a group, evaluated together
 constexpr float kMinAlpha = 1.0f / 255.0f;
 constexpr float kMaxAlpha = 0.99f;
 constexpr float kMinTransmittance = 1e-4f;
@@ -66,20 +66,25 @@ inline void set_extent(Splat& s) {
   s.span_k2 = float(double(s.b) * inv_a);
 }
 
-// Per-pixel state of a run of 8 pixels, each pointer at the run's first
-// pixel. All 8 lanes are read and written whatever the run length: lanes past
-// the run keep their T, and their weight / raw / trans values are never read.
-struct RowState {
-  float* T;             // [8] transmittance, advanced in place
-  const uint8_t* done;  // [8] pixels that already stopped
-  float* weight;        // [8] out: alpha * T before the splat
-  float* raw;           // [8] out, may be null: o exp(-power) before the 0.99 clamp
-  float* trans;         // [8] out, with raw: T before the splat
+// One group of 8 horizontally adjacent pixels (8-aligned within its tile
+// row) against the chunk Gaussians that may reach it, in depth order. The
+// group's transmittance and stopped lanes stay in registers across the whole
+// list, and every store is 8 aligned floats, so consecutive splats never wait
+// on a partially overlapping store.
+struct GroupState {
+  float* T;         // [8] transmittance, advanced in place
+  unsigned live;    // lanes not stopped and inside the image, updated in place
+  uint64_t* pmask;  // [8] out: bit k where chunk Gaussian k blends the pixel
 };
 
-struct RowBits {
-  unsigned blend;  // lanes that blend this splat
-  unsigned stop;   // lanes where it would take T below 1e-4: they stop instead
+// Where per-pair values go: chunk Gaussian k's 8 values at base + k * stride.
+struct PairStores {
+  float* weight;           // alpha * T before the splat
+  float* raw;              // may be null: o exp(-power) before the 0.99 clamp
+  float* trans;            // with raw: T before the splat
+  int stride;              // floats
+  uint64_t* gmask;         // may be null: [64][words] pixels each Gaussian blends
+  int words, word, shift;  // gmask row length, the group's word and bit offset
 };
 
 #if defined(__AVX2__) && defined(__FMA__)
@@ -103,84 +108,97 @@ inline __m256 exp_nonpositive(__m256 x) {
   return _mm256_mul_ps(p, _mm256_castsi256_ps(scale));
 }
 
-// Pixels x .. x+count-1 of one row (count <= 8) against splat g: a pixel
-// blends where it is not done, alpha >= 1/255 and T stays >= 1e-4.
-inline RowBits blend_row(const Splat& g, int x, int count, float dy, const RowState& st) {
-  const __m256 xs =
-      _mm256_add_ps(_mm256_set1_ps(float(x) + 0.5f), _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
-  const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(g.mx), xs);
-  const __m256 dyv = _mm256_set1_ps(dy);
-  // power = 0.5 (a dx^2 + c dy^2) + b dx dy
-  const __m256 quad =
-      _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(g.a), dx), dx, _mm256_set1_ps(g.c * dy * dy));
-  const __m256 power = _mm256_fmadd_ps(_mm256_set1_ps(0.5f), quad,
-                                       _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(g.b), dx), dyv));
-  const __m256 r = _mm256_mul_ps(_mm256_set1_ps(g.opacity),
-                                 exp_nonpositive(_mm256_sub_ps(_mm256_setzero_ps(), power)));
-  const __m256 alpha = _mm256_min_ps(r, _mm256_set1_ps(kMaxAlpha));
-  const __m256 keep = _mm256_and_ps(_mm256_cmp_ps(power, _mm256_set1_ps(g.skip_power), _CMP_LE_OQ),
-                                    _mm256_cmp_ps(alpha, _mm256_set1_ps(kMinAlpha), _CMP_GE_OQ));
-  uint64_t done8;
-  std::memcpy(&done8, st.done, sizeof done8);
-  const __m256i live = _mm256_cmpeq_epi32(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(int64_t(done8))),
-                                          _mm256_setzero_si256());
-  const unsigned keep_bits =
-      unsigned(_mm256_movemask_ps(_mm256_and_ps(keep, _mm256_castsi256_ps(live)))) &
-      ((1u << count) - 1);
-  const __m256 t = _mm256_loadu_ps(st.T);
-  const __m256 next = _mm256_mul_ps(t, _mm256_sub_ps(_mm256_set1_ps(1.0f), alpha));
-  const unsigned low_bits = unsigned(
-      _mm256_movemask_ps(_mm256_cmp_ps(next, _mm256_set1_ps(kMinTransmittance), _CMP_LT_OQ)));
-  const RowBits bits{keep_bits & ~low_bits, keep_bits & low_bits};
-  // Lane i of the blend mask: bit i of bits.blend.
+// Lanes 0-7 as all-ones / all-zero 32-bit masks from the low 8 bits.
+inline __m256 lane_mask(unsigned bits) {
   const __m256i lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-  const __m256 blend = _mm256_castsi256_ps(
-      _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(int(bits.blend)), lane_bit), lane_bit));
-  _mm256_storeu_ps(st.T, _mm256_blendv_ps(t, next, blend));
-  _mm256_storeu_ps(st.weight, _mm256_mul_ps(alpha, t));
-  if (st.raw) {
-    _mm256_storeu_ps(st.raw, r);
-    _mm256_storeu_ps(st.trans, t);
-  }
-  return bits;
+  return _mm256_castsi256_ps(
+      _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(int(bits)), lane_bit), lane_bit));
 }
-#else
-inline RowBits blend_row(const Splat& g, int x, int count, float dy, const RowState& st) {
-  RowBits bits{0, 0};
-  for (int i = 0; i < kRowLanes; ++i) {
-    const float dx = g.mx - (float(x + i) + 0.5f);
-    const float power = 0.5f * (g.a * dx * dx + g.c * dy * dy) + g.b * dx * dy;
-    const float raw = g.opacity * std::exp(-power);
-    const float alpha = raw < kMaxAlpha ? raw : kMaxAlpha;
-    const float t = st.T[i], next = t * (1.0f - alpha);
-    st.weight[i] = alpha * t;
-    if (st.raw) st.raw[i] = raw, st.trans[i] = t;
-    if (i >= count || st.done[i] || !(power <= g.skip_power) || !(alpha >= kMinAlpha)) continue;
-    if (next < kMinTransmittance) {
-      bits.stop |= 1u << i;
-      continue;
-    }
-    bits.blend |= 1u << i;
-    st.T[i] = next;
-  }
-  return bits;
-}
-#endif
 
-// Per-pixel masks of a run: dst[i] |= value for each bit i of bits (i < 8).
-inline void or_lane_bits(uint64_t* dst, unsigned bits, uint64_t value) {
-#if defined(__AVX2__) && defined(__FMA__)
-  const __m256i b = _mm256_set1_epi64x(bits), v = _mm256_set1_epi64x(int64_t(value));
-  const __m256i lo = _mm256_setr_epi64x(1, 2, 4, 8), hi = _mm256_setr_epi64x(16, 32, 64, 128);
-  auto* d = reinterpret_cast<__m256i*>(dst);
-  const __m256i m_lo = _mm256_and_si256(_mm256_cmpeq_epi64(_mm256_and_si256(b, lo), lo), v);
-  const __m256i m_hi = _mm256_and_si256(_mm256_cmpeq_epi64(_mm256_and_si256(b, hi), hi), v);
-  _mm256_storeu_si256(d, _mm256_or_si256(_mm256_loadu_si256(d), m_lo));
-  _mm256_storeu_si256(d + 1, _mm256_or_si256(_mm256_loadu_si256(d + 1), m_hi));
-#else
-  for (int i = 0; i < kRowLanes; ++i)
-    if (bits >> i & 1) dst[i] |= value;
-#endif
+// Pixels with centres px0 + i (i < 8) in the row with centre py against the
+// chunk Gaussians in members (bit k: splats[k]): a pixel blends where it is
+// live, alpha >= 1/255 and T stays >= 1e-4; where T would fall below 1e-4 it
+// stops instead.
+inline void blend_group(const Splat* const* splats, uint64_t members, float px0, float py,
+                        GroupState& st, const PairStores& out) {
+  const __m256 xs = _mm256_add_ps(_mm256_set1_ps(px0), _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
+  __m256 t = _mm256_load_ps(st.T);
+  __m256 live = lane_mask(st.live);
+  __m256i pm_lo = _mm256_setzero_si256(), pm_hi = _mm256_setzero_si256();
+  for (; members; members &= members - 1) {
+    const int k = __builtin_ctzll(members);
+    const Splat& g = *splats[k];
+    const float dy = g.my - py;
+    const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(g.mx), xs);
+    // power = 0.5 (a dx^2 + c dy^2) + b dx dy
+    const __m256 quad =
+        _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(g.a), dx), dx, _mm256_set1_ps(g.c * dy * dy));
+    const __m256 power =
+        _mm256_fmadd_ps(_mm256_set1_ps(0.5f), quad, _mm256_mul_ps(_mm256_set1_ps(g.b * dy), dx));
+    const __m256 r = _mm256_mul_ps(_mm256_set1_ps(g.opacity),
+                                   exp_nonpositive(_mm256_sub_ps(_mm256_setzero_ps(), power)));
+    const __m256 alpha = _mm256_min_ps(r, _mm256_set1_ps(kMaxAlpha));
+    const __m256 keep =
+        _mm256_and_ps(_mm256_cmp_ps(power, _mm256_set1_ps(g.skip_power), _CMP_LE_OQ),
+                      _mm256_cmp_ps(alpha, _mm256_set1_ps(kMinAlpha), _CMP_GE_OQ));
+    const __m256 next = _mm256_mul_ps(t, _mm256_sub_ps(_mm256_set1_ps(1.0f), alpha));
+    const __m256 low = _mm256_cmp_ps(next, _mm256_set1_ps(kMinTransmittance), _CMP_LT_OQ);
+    const __m256 pass = _mm256_and_ps(keep, live);
+    const __m256 blend = _mm256_andnot_ps(low, pass);
+    const size_t at = size_t(k) * out.stride;
+    _mm256_store_ps(out.weight + at, _mm256_mul_ps(alpha, t));
+    if (out.raw) {
+      _mm256_store_ps(out.raw + at, r);
+      _mm256_store_ps(out.trans + at, t);
+    }
+    t = _mm256_blendv_ps(t, next, blend);
+    live = _mm256_andnot_ps(_mm256_and_ps(pass, low), live);
+    const __m256i kbit = _mm256_set1_epi64x(int64_t(uint64_t(1) << k));
+    const __m256i b = _mm256_castps_si256(blend);
+    pm_lo = _mm256_or_si256(
+        pm_lo, _mm256_and_si256(kbit, _mm256_cvtepi32_epi64(_mm256_castsi256_si128(b))));
+    pm_hi = _mm256_or_si256(
+        pm_hi, _mm256_and_si256(kbit, _mm256_cvtepi32_epi64(_mm256_extracti128_si256(b, 1))));
+    if (out.gmask)
+      out.gmask[k * out.words + out.word] |= uint64_t(unsigned(_mm256_movemask_ps(blend)))
+                                             << out.shift;
+    if (_mm256_movemask_ps(live) == 0) break;
+  }
+  _mm256_store_ps(st.T, t);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(st.pmask), pm_lo);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(st.pmask + 4), pm_hi);
+  st.live = unsigned(_mm256_movemask_ps(live));
 }
+#else
+inline void blend_group(const Splat* const* splats, uint64_t members, float px0, float py,
+                        GroupState& st, const PairStores& out) {
+  for (int i = 0; i < 8; ++i) st.pmask[i] = 0;
+  for (; members && st.live; members &= members - 1) {
+    const int k = __builtin_ctzll(members);
+    const Splat& g = *splats[k];
+    const float dy = g.my - py;
+    const size_t at = size_t(k) * out.stride;
+    unsigned bits = 0;
+    for (int i = 0; i < 8; ++i) {
+      const float dx = g.mx - (px0 + float(i));
+      const float power = 0.5f * (g.a * dx * dx + g.c * dy * dy) + g.b * dy * dx;
+      const float raw = g.opacity * std::exp(-power);
+      const float alpha = raw < kMaxAlpha ? raw : kMaxAlpha;
+      const float t = st.T[i], next = t * (1.0f - alpha);
+      out.weight[at + i] = alpha * t;
+      if (out.raw) out.raw[at + i] = raw, out.trans[at + i] = t;
+      if (!(st.live >> i & 1) || !(power <= g.skip_power) || !(alpha >= kMinAlpha)) continue;
+      if (next < kMinTransmittance) {
+        st.live &= ~(1u << i);
+        continue;
+      }
+      bits |= 1u << i;
+      st.T[i] = next;
+      st.pmask[i] |= uint64_t(1) << k;
+    }
+    if (out.gmask) out.gmask[k * out.words + out.word] |= uint64_t(bits) << out.shift;
+  }
+}
+#endif
 
 }  // namespace ddhgs::render
