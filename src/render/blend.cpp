@@ -97,8 +97,8 @@ int clip(float v, int lo, int hi) {
 }
 
 // The 3DGS per-pixel recurrence for one chunk of depth ranks. First each
-// splat's ellipse, row span by row span, marks the 8-pixel groups it may
-// reach; then each group runs through its splats in depth order
+// splat's ellipse, row span by row span (span_groups), marks the 8-pixel
+// groups it may reach; then each group runs through its splats in depth order
 // (blend_group). One function for forward and backward, so the backward
 // replays exactly the same float operations. ranks[0, remaining) are valid
 // (the rest of the tile's list), ranks[0, m) form this chunk. grad_rows
@@ -117,34 +117,16 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
     s.col_rows[k] = ranked.row(ranks[k], np);
     s.depth[k] = g.depth;
     if (g.ext_x < 0) continue;
-    // Pixel x has its centre at x + 0.5.
-    const int xa = clip(std::floor(g.mx - g.ext_x - 0.5f), s.x0, s.x1);
-    const int xb = clip(std::ceil(g.mx + g.ext_x - 0.5f) + 1, s.x0, s.x1);
+    // Pixel y has its centre at y + 0.5.
     const int ya = clip(std::floor(g.my - g.ext_y - 0.5f), s.y0, s.y1);
     const int yb = clip(std::ceil(g.my + g.ext_y - 0.5f) + 1, s.y0, s.y1);
-    // Row span where power <= skip_power + 1e-3: the roots in dx of
-    // 0.5 a dx^2 + b dy dx + 0.5 c dy^2 - power, i.e. dx = -(b / a) dy +- hw,
-    // hw^2 = 2 power / a - (det / a^2) dy^2 (coefficients from set_extent),
-    // widened by kSpanSlack so that the exact per-pixel test, not float
-    // rounding here, decides.
-    const float k0 = g.span_k0, k1 = g.span_k1, k2 = g.span_k2;
+    uint64_t groups = 0;  // bit 2 r + h: tile row r, half h
+    for (int y = ya; y < yb; y += kRowLanes)
+      groups |= uint64_t(span_groups(g, y, std::min(kRowLanes, yb - y), s.x0, s.x1, kSpanSlack))
+                << (2 * (y - s.y0));
     const uint64_t kbit = uint64_t(1) << k;
-    bool hit = false;
-    for (int y = ya; y < yb; ++y) {
-      const float dy = g.my - (float(y) + 0.5f);
-      const float hw2 = k0 - k1 * dy * dy;
-      if (!(hw2 >= 0)) continue;
-      const float hw = std::sqrt(hw2);
-      const float centre = g.mx - 0.5f + k2 * dy;  // pixel x where power is least
-      const int xr0 = clip(std::ceil(centre - hw - kSpanSlack), xa, xb);
-      const int xr1 = clip(std::floor(centre + hw + kSpanSlack) + 1, xa, xb);
-      if (xr0 >= xr1) continue;
-      uint64_t* row = members + (y - s.y0) * kGroupsPerRow;
-      row[(xr0 - s.x0) / kRowLanes] |= kbit;
-      row[(xr1 - 1 - s.x0) / kRowLanes] |= kbit;
-      hit = true;
-    }
-    if (hit) {
+    for (uint64_t bits = groups; bits; bits &= bits - 1) members[__builtin_ctzll(bits)] |= kbit;
+    if (groups) {
       prefetch_row(s.col_rows[k], np);
       if (grad_rows) prefetch_row(grad_rows + size_t(ranks[k]) * np, np);
     }

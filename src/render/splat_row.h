@@ -108,6 +108,55 @@ inline __m256 exp_nonpositive(__m256 x) {
   return _mm256_mul_ps(p, _mm256_castsi256_ps(scale));
 }
 
+// Bits 0-7 of x moved to the even bits 0, 2, .., 14.
+inline uint32_t spread_even(uint32_t x) {
+  x = (x | x << 4) & 0x0f0fu;
+  x = (x | x << 2) & 0x3333u;
+  return (x | x << 1) & 0x5555u;
+}
+
+// Which 8-pixel groups of a tile the row spans of g reach, for the rows
+// y .. y + count - 1 (count <= 8) and the tile columns [x0, x1): bit 2 i + h
+// for row y + i and half h (pixels x0 + 8 h .. x0 + 8 h + 7). The span of a
+// row is where power <= skip_power + 1e-3: the roots in dx of
+// 0.5 a dx^2 + b dy dx + 0.5 c dy^2 - power, i.e. dx = -(b / a) dy +- hw,
+// hw^2 = 2 power / a - (det / a^2) dy^2 (coefficients from set_extent),
+// widened by slack pixels so that the exact per-pixel test, not float
+// rounding here, decides.
+inline uint32_t span_groups(const Splat& g, int y, int count, int x0, int x1, float slack) {
+  const __m256 lane = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 dy =
+      _mm256_sub_ps(_mm256_set1_ps(g.my), _mm256_add_ps(_mm256_set1_ps(float(y) + 0.5f), lane));
+  const __m256 hw2 =
+      _mm256_fnmadd_ps(_mm256_mul_ps(_mm256_set1_ps(g.span_k1), dy), dy, _mm256_set1_ps(g.span_k0));
+  const __m256 hw =
+      _mm256_add_ps(_mm256_sqrt_ps(_mm256_max_ps(hw2, _mm256_setzero_ps())), _mm256_set1_ps(slack));
+  // Pixel x (centre x + 0.5) where power is least along the row.
+  const __m256 centre = _mm256_fmadd_ps(_mm256_set1_ps(g.span_k2), dy, _mm256_set1_ps(g.mx - 0.5f));
+  const __m256 left = _mm256_set1_ps(float(x0)), right = _mm256_set1_ps(float(x1));
+  const __m256 lo = _mm256_min_ps(
+      _mm256_max_ps(
+          _mm256_round_ps(_mm256_sub_ps(centre, hw), _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC),
+          left),
+      right);
+  const __m256 hi = _mm256_min_ps(
+      _mm256_max_ps(_mm256_add_ps(_mm256_round_ps(_mm256_add_ps(centre, hw),
+                                                  _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC),
+                                  _mm256_set1_ps(1.0f)),
+                    left),
+      right);
+  const __m256 valid =
+      _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(hw2, _mm256_setzero_ps(), _CMP_GE_OQ),
+                                  _mm256_cmp_ps(lo, hi, _CMP_LT_OQ)),
+                    _mm256_cmp_ps(lane, _mm256_set1_ps(float(count)), _CMP_LT_OQ));
+  const __m256 mid = _mm256_set1_ps(float(x0 + kRowLanes));
+  const unsigned first =
+      unsigned(_mm256_movemask_ps(_mm256_and_ps(valid, _mm256_cmp_ps(lo, mid, _CMP_LT_OQ))));
+  const unsigned second =
+      unsigned(_mm256_movemask_ps(_mm256_and_ps(valid, _mm256_cmp_ps(hi, mid, _CMP_GT_OQ))));
+  return spread_even(first) | spread_even(second) << 1;
+}
+
 // Lanes 0-7 as all-ones / all-zero 32-bit masks from the low 8 bits.
 inline __m256 lane_mask(unsigned bits) {
   const __m256i lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
@@ -170,6 +219,23 @@ inline void blend_group(const Splat* const* splats, uint64_t members, float px0,
   st.live = unsigned(_mm256_movemask_ps(live));
 }
 #else
+inline uint32_t span_groups(const Splat& g, int y, int count, int x0, int x1, float slack) {
+  uint32_t bits = 0;
+  for (int i = 0; i < count; ++i) {
+    const float dy = g.my - (float(y + i) + 0.5f);
+    const float hw2 = g.span_k0 - g.span_k1 * dy * dy;
+    if (!(hw2 >= 0)) continue;
+    const float hw = std::sqrt(hw2) + slack;
+    const float centre = g.mx - 0.5f + g.span_k2 * dy;
+    const float lo = std::fmin(std::fmax(std::ceil(centre - hw), float(x0)), float(x1));
+    const float hi = std::fmin(std::fmax(std::floor(centre + hw) + 1, float(x0)), float(x1));
+    if (!(lo < hi)) continue;
+    if (lo < float(x0 + kRowLanes)) bits |= 1u << (2 * i);
+    if (hi > float(x0 + kRowLanes)) bits |= 2u << (2 * i);
+  }
+  return bits;
+}
+
 inline void blend_group(const Splat* const* splats, uint64_t members, float px0, float py,
                         GroupState& st, const PairStores& out) {
   for (int i = 0; i < 8; ++i) st.pmask[i] = 0;
