@@ -165,15 +165,20 @@ int pixel_pairs(const TileScratch& s, int p, uint8_t* gauss, float* weight) {
   return c;
 }
 
-// sum_j weight[j] * depth[gauss[j]], with four independent partial sums
-// instead of one dependent chain of adds.
-float depth_sum(const uint8_t* gauss, const float* weight, const float* depth, int c) {
-  float part[4] = {0, 0, 0, 0};
-  int j = 0;
-  for (; j + 4 <= c; j += 4)
-    for (int u = 0; u < 4; ++u) part[u] += weight[j + u] * depth[gauss[j + u]];
-  for (; j < c; ++j) part[j % 4] += weight[j] * depth[gauss[j]];
-  return (part[0] + part[1]) + (part[2] + part[3]);
+// Sum over the set bits k of bits of weight[k * kPixels] * depth[k], with two
+// independent partial sums instead of one dependent chain of adds.
+float depth_sum(uint64_t bits, const float* weight, const float* depth) {
+  float part0 = 0, part1 = 0;
+  while (bits) {
+    int k = __builtin_ctzll(bits);
+    part0 += weight[k * kPixels] * depth[k];
+    bits &= bits - 1;
+    if (!bits) break;
+    k = __builtin_ctzll(bits);
+    part1 += weight[k * kPixels] * depth[k];
+    bits &= bits - 1;
+  }
+  return part0 + part1;
 }
 
 }  // namespace
@@ -213,15 +218,13 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
         const int m = std::min<int32_t>(kChunk, end - b);
         blend_chunk(s, ranked, ranks, m, end - b, np, false);
         for (int p = 0; p < kPixels; ++p) {
-          if (s.pmask[p] == 0) continue;
-          uint8_t gauss[kChunk];
-          float weight[kChunk];
-          const int c = pixel_pairs(s, p, gauss, weight);
-          pairs += c;
-          kernels::gather_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, gauss, weight, c,
-                               s.touched[p]);
+          const uint64_t bits = s.pmask[p];
+          if (bits == 0) continue;
+          pairs += __builtin_popcountll(bits);
+          kernels::mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, bits, s.weight + p,
+                             kPixels, s.touched[p]);
           s.touched[p] = 1;
-          dsum[p] += depth_sum(gauss, weight, s.depth, c);
+          dsum[p] += depth_sum(bits, s.weight + p, s.depth);
         }
       }
       for (int y = s.y0; y < s.y1; ++y)

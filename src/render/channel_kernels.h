@@ -78,6 +78,23 @@ inline void gather_axpy_block(float* acc, const float* const* rows, int c, const
   for (int v = 0; v < V; ++v) _mm256_storeu_ps(acc + kLanes * v, a[v]);
 }
 
+// As gather_axpy_block, with the pairs given as the set bits k of a mask and
+// their weights at w[k * w_stride] (no decoded index or weight lists).
+template <int V>
+inline void mask_axpy_block(float* acc, const float* const* rows, int c, uint64_t bits,
+                            const float* w, int w_stride, bool accumulate) {
+  __m256 a[V];
+  for (int v = 0; v < V; ++v)
+    a[v] = accumulate ? _mm256_loadu_ps(acc + kLanes * v) : _mm256_setzero_ps();
+  for (; bits; bits &= bits - 1) {
+    const int k = __builtin_ctzll(bits);
+    const float* r = row_at(rows[k], c);
+    const __m256 wk = _mm256_broadcast_ss(w + size_t(k) * w_stride);
+    for (int v = 0; v < V; ++v) a[v] = _mm256_fmadd_ps(wk, _mm256_loadu_ps(r + kLanes * v), a[v]);
+  }
+  for (int v = 0; v < V; ++v) _mm256_storeu_ps(acc + kLanes * v, a[v]);
+}
+
 // Sums of the lanes of s[0..8), as one vector: lane u holds sum(s[u]).
 inline __m256 lane_sums8(const __m256* s) {
   const __m256 a = _mm256_hadd_ps(_mm256_hadd_ps(s[0], s[1]), _mm256_hadd_ps(s[2], s[3]));
@@ -153,6 +170,14 @@ struct AxpyOp {
 };
 
 template <int V>
+struct MaskAxpyOp {
+  static void run(int c, float* acc, const float* const* rows, uint64_t bits, const float* w,
+                  int w_stride, bool accumulate) {
+    mask_axpy_block<V>(acc + c, rows, c, bits, w, w_stride, accumulate);
+  }
+};
+
+template <int V>
 struct DotOp {
   static void run(int c, const float* x, const float* const* rows, const uint8_t* idx, int count,
                   float* out) {
@@ -165,6 +190,13 @@ struct DotOp {
 inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8_t* idx,
                         const float* w, int count, bool accumulate = true) {
   over_blocks<AxpyOp>(n, acc, rows, idx, w, count, accumulate);
+}
+
+// acc[0, n) (+)= sum over set bits k of w[k * w_stride] * rows[k][0, n); n is
+// a multiple of kLanes.
+inline void mask_axpy(float* acc, const float* const* rows, int n, uint64_t bits, const float* w,
+                      int w_stride, bool accumulate) {
+  over_blocks<MaskAxpyOp>(n, acc, rows, bits, w, w_stride, accumulate);
 }
 
 // out[j] += dot(x[0, n), rows[idx[j]][0, n)) for each j; n a multiple of kLanes.
@@ -201,6 +233,16 @@ inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8
   for (int j = 0; j < count; ++j) {
     const float* r = rows[idx[j]];
     for (int c = 0; c < n; ++c) acc[c] += w[j] * r[c];
+  }
+}
+
+inline void mask_axpy(float* acc, const float* const* rows, int n, uint64_t bits, const float* w,
+                      int w_stride, bool accumulate) {
+  if (!accumulate) std::fill(acc, acc + n, 0.0f);
+  for (; bits; bits &= bits - 1) {
+    const int k = __builtin_ctzll(bits);
+    const float* r = rows[k];
+    for (int c = 0; c < n; ++c) acc[c] += w[size_t(k) * w_stride] * r[c];
   }
 }
 
