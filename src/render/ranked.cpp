@@ -23,18 +23,27 @@ const Ranked& rank_gaussians(const Projected& p, const torch::Tensor& colors, co
   const float* op = p.opacities.data_ptr<float>();
   const float* dep = p.depths.data_ptr<float>();
   const float* col = colors.data_ptr<float>();
-  at::parallel_for(0, visible, 1024, [&](int64_t begin, int64_t end) {
-    for (int64_t r = begin; r < end; ++r) {
-      const int64_t i = order[r];
+  // Records are filled in Gaussian order, reading the projection sequentially
+  // and writing whole 64-byte records at their ranks (in rank order the reads
+  // of five input arrays missed the cache).
+  thread_local std::vector<int32_t> rank_of;
+  rank_of.assign(size_t(colors.size(0)), -1);
+  for (int32_t r = 0; r < int32_t(visible); ++r) rank_of[order[r]] = r;
+  const int32_t* rank = rank_of.data();
+  at::parallel_for(0, colors.size(0), 2048, [&](int64_t begin, int64_t end) {
+    for (int64_t i = begin; i < end; ++i) {
+      const int64_t r = rank[i];
+      if (r < 0) continue;
       if (copy) {
         std::copy(col + i * n, col + (i + 1) * n, ranked_colors + r * np);
         std::fill(ranked_colors + r * np + n, ranked_colors + (r + 1) * np, 0.0f);
       }
-      Splat& s = splats[r];
+      Splat s;
       s.mx = m[2 * i], s.my = m[2 * i + 1];
       s.a = con[3 * i], s.b = con[3 * i + 1], s.c = con[3 * i + 2];
       s.opacity = op[i], s.depth = dep[i];
       set_extent(s);
+      splats[r] = s;
     }
   });
   cache.rows = copy ? ranked_colors : col;
