@@ -221,7 +221,7 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
           const uint64_t bits = s.pmask[p];
           if (bits == 0) continue;
           pairs += __builtin_popcountll(bits);
-          kernels::mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, bits, s.weight + p,
+          kernels::mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, &bits, 1, s.weight + p,
                              kPixels, s.touched[p]);
           s.touched[p] = 1;
           dsum[p] += depth_sum(bits, s.weight + p, s.depth);
@@ -312,17 +312,11 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
         blend_chunk(s, ranked, ranks, m, end - b, np, true, gcol);
         // dL/dcolors = W^T dL/dimage, Gaussian-major with register accumulators.
         for (int k = 0; k < m; ++k) {
-          uint8_t pix[kPixels];
-          float weight[kPixels];
-          int c = 0;
-          for (int word = 0; word < kPixels / 64; ++word)
-            for (uint64_t bits = s.gmask[k][word]; bits; bits &= bits - 1, ++c) {
-              const int p = word * 64 + __builtin_ctzll(bits);
-              pix[c] = uint8_t(p);
-              weight[c] = s.weight[k * kPixels + p];
-            }
-          if (c == 0) continue;
-          kernels::gather_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows, np, pix, weight, c);
+          uint64_t any = 0;
+          for (const uint64_t word : s.gmask[k]) any |= word;
+          if (any)
+            kernels::mask_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows, np, s.gmask[k],
+                               kPixels / 64, s.weight + k * kPixels, 1);
         }
         float geo[kChunk][kSlots] = {};
         for (int p = 0; p < kPixels; ++p) {

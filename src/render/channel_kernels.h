@@ -78,20 +78,22 @@ inline void gather_axpy_block(float* acc, const float* const* rows, int c, const
   for (int v = 0; v < V; ++v) _mm256_storeu_ps(acc + kLanes * v, a[v]);
 }
 
-// As gather_axpy_block, with the pairs given as the set bits k of a mask and
-// their weights at w[k * w_stride] (no decoded index or weight lists).
+// As gather_axpy_block, with the pairs given as the set bits k of a mask of
+// nwords 64-bit words and their weights at w[k * w_stride] (no decoded index
+// or weight lists).
 template <int V>
-inline void mask_axpy_block(float* acc, const float* const* rows, int c, uint64_t bits,
-                            const float* w, int w_stride, bool accumulate) {
+inline void mask_axpy_block(float* acc, const float* const* rows, int c, const uint64_t* words,
+                            int nwords, const float* w, int w_stride, bool accumulate) {
   __m256 a[V];
   for (int v = 0; v < V; ++v)
     a[v] = accumulate ? _mm256_loadu_ps(acc + kLanes * v) : _mm256_setzero_ps();
-  for (; bits; bits &= bits - 1) {
-    const int k = __builtin_ctzll(bits);
-    const float* r = row_at(rows[k], c);
-    const __m256 wk = _mm256_broadcast_ss(w + size_t(k) * w_stride);
-    for (int v = 0; v < V; ++v) a[v] = _mm256_fmadd_ps(wk, _mm256_loadu_ps(r + kLanes * v), a[v]);
-  }
+  for (int word = 0; word < nwords; ++word)
+    for (uint64_t bits = words[word]; bits; bits &= bits - 1) {
+      const int k = word * 64 + __builtin_ctzll(bits);
+      const float* r = row_at(rows[k], c);
+      const __m256 wk = _mm256_broadcast_ss(w + size_t(k) * w_stride);
+      for (int v = 0; v < V; ++v) a[v] = _mm256_fmadd_ps(wk, _mm256_loadu_ps(r + kLanes * v), a[v]);
+    }
   for (int v = 0; v < V; ++v) _mm256_storeu_ps(acc + kLanes * v, a[v]);
 }
 
@@ -171,9 +173,9 @@ struct AxpyOp {
 
 template <int V>
 struct MaskAxpyOp {
-  static void run(int c, float* acc, const float* const* rows, uint64_t bits, const float* w,
-                  int w_stride, bool accumulate) {
-    mask_axpy_block<V>(acc + c, rows, c, bits, w, w_stride, accumulate);
+  static void run(int c, float* acc, const float* const* rows, const uint64_t* words, int nwords,
+                  const float* w, int w_stride, bool accumulate) {
+    mask_axpy_block<V>(acc + c, rows, c, words, nwords, w, w_stride, accumulate);
   }
 };
 
@@ -192,11 +194,11 @@ inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8
   over_blocks<AxpyOp>(n, acc, rows, idx, w, count, accumulate);
 }
 
-// acc[0, n) (+)= sum over set bits k of w[k * w_stride] * rows[k][0, n); n is
-// a multiple of kLanes.
-inline void mask_axpy(float* acc, const float* const* rows, int n, uint64_t bits, const float* w,
-                      int w_stride, bool accumulate) {
-  over_blocks<MaskAxpyOp>(n, acc, rows, bits, w, w_stride, accumulate);
+// acc[0, n) (+)= sum over set bits k of words[0, nwords) (bit k % 64 of word
+// k / 64) of w[k * w_stride] * rows[k][0, n); n is a multiple of kLanes.
+inline void mask_axpy(float* acc, const float* const* rows, int n, const uint64_t* words,
+                      int nwords, const float* w, int w_stride, bool accumulate = true) {
+  over_blocks<MaskAxpyOp>(n, acc, rows, words, nwords, w, w_stride, accumulate);
 }
 
 // out[j] += dot(x[0, n), rows[idx[j]][0, n)) for each j; n a multiple of kLanes.
@@ -236,14 +238,15 @@ inline void gather_axpy(float* acc, const float* const* rows, int n, const uint8
   }
 }
 
-inline void mask_axpy(float* acc, const float* const* rows, int n, uint64_t bits, const float* w,
-                      int w_stride, bool accumulate) {
+inline void mask_axpy(float* acc, const float* const* rows, int n, const uint64_t* words,
+                      int nwords, const float* w, int w_stride, bool accumulate = true) {
   if (!accumulate) std::fill(acc, acc + n, 0.0f);
-  for (; bits; bits &= bits - 1) {
-    const int k = __builtin_ctzll(bits);
-    const float* r = rows[k];
-    for (int c = 0; c < n; ++c) acc[c] += w[size_t(k) * w_stride] * r[c];
-  }
+  for (int word = 0; word < nwords; ++word)
+    for (uint64_t bits = words[word]; bits; bits &= bits - 1) {
+      const int k = word * 64 + __builtin_ctzll(bits);
+      const float* r = rows[k];
+      for (int c = 0; c < n; ++c) acc[c] += w[size_t(k) * w_stride] * r[c];
+    }
 }
 
 inline void gather_dot(const float* x, const float* const* rows, int n, const uint8_t* idx,
