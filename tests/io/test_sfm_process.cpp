@@ -109,6 +109,7 @@ TEST(SfmProcess, WritesATrainableSceneAndListsUnregisteredViews) {
   Fixture f = make_fixture("sfm_process_ok", 3);
   ProcessOptions o = options_for(f, fake_colmap(f.root, f.model));
   o.out = f.out.string() + "/";  // a trailing slash names the same folder
+  o.colmap.settings = {"SiftExtraction.peak_threshold=0.004"};
   ProcessResult r = process_cubes(o);
   EXPECT_EQ(r.views, 4);
   EXPECT_EQ(r.registered, 3);
@@ -122,6 +123,10 @@ TEST(SfmProcess, WritesATrainableSceneAndListsUnregisteredViews) {
   EXPECT_TRUE(contains(log, "fake feature_extractor")) << log;
   EXPECT_TRUE(contains(log, "--ImageReader.camera_model 'SIMPLE_PINHOLE'")) << log;
   EXPECT_TRUE(contains(log, "--SiftMatching.use_gpu '0'")) << log;
+  // Defaults for small frames, each replaced (not repeated) by a user setting.
+  EXPECT_TRUE(contains(log, "--SiftExtraction.domain_size_pooling '1'")) << log;
+  EXPECT_TRUE(contains(log, "--SiftExtraction.peak_threshold '0.004'")) << log;
+  EXPECT_FALSE(contains(log, "--SiftExtraction.peak_threshold '0.002'")) << log;
   auto summary = nlohmann::json::parse(read_file(f.out / "process.json"));
   EXPECT_EQ(summary["unregistered"], nlohmann::json::array({"v3"}));
 
