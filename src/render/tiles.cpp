@@ -109,32 +109,34 @@ void bin_gaussians(const float* means2d, const float* conics, const float* opaci
   const int n_tiles = bins.num_tiles();
   const int32_t visible = int32_t(bins.order.size());
   std::vector<int64_t> counts(n_tiles + 1, 0);
-  // Rects are computed in Gaussian order, reading the inputs sequentially,
-  // and then gathered into rank order (in rank order the reads of four input
-  // arrays missed the cache and took more than half of the binning).
-  thread_local std::vector<TileRect> rects, gauss_rects;
-  rects.resize(visible);
-  gauss_rects.resize(count);
+  // Rects are computed and counted in Gaussian order, reading the inputs
+  // sequentially, and gathered by rank only for the fill (in rank order the
+  // reads of four input arrays missed the cache). Packed to 8 bytes so the
+  // gather's working set stays small.
+  struct PackedRect {
+    uint16_t x0, y0, x1, y1;
+  };
+  core::require(bins.tiles_x < 65536 && bins.tiles_y < 65536,
+                "rasterize: image wider or taller than 65535 tiles");
+  thread_local std::vector<PackedRect> rects;
+  rects.resize(count);
   auto rect_of = [&](int32_t g) {
     const double u = means2d[2 * g], v = means2d[2 * g + 1];
     TileRect t = tile_rect(u, v, radii[g], bins.tiles_x, bins.tiles_y);
     const SplatExtent e =
         splat_extent(conics[3 * g], conics[3 * g + 1], conics[3 * g + 2], opacities[g]);
-    if (e.empty) return TileRect{0, 0, 0, 0};
+    if (e.empty) return PackedRect{0, 0, 0, 0};
     // Pixel x (centre x + 0.5) is within ext_x of u for x in [u - ext_x - 0.5, u + ext_x - 0.5].
-    auto first = [](double lo, int n) {
-      return int(std::fmin(double(n), std::fmax(0.0, std::floor(lo / kTileSize))));
-    };
-    t.x0 = std::max(t.x0, first(u - e.ext_x - 0.5, bins.tiles_x));
-    t.x1 = std::min(t.x1, first(u + e.ext_x - 0.5, bins.tiles_x - 1) + 1);
-    t.y0 = std::max(t.y0, first(v - e.ext_y - 0.5, bins.tiles_y));
-    t.y1 = std::min(t.y1, first(v + e.ext_y - 0.5, bins.tiles_y - 1) + 1);
-    return t;
+    t.x0 = std::max(t.x0, clamped_floor((u - e.ext_x - 0.5) / kTileSize, bins.tiles_x));
+    t.x1 = std::min(t.x1, clamped_floor((u + e.ext_x - 0.5) / kTileSize, bins.tiles_x - 1) + 1);
+    t.y0 = std::max(t.y0, clamped_floor((v - e.ext_y - 0.5) / kTileSize, bins.tiles_y));
+    t.y1 = std::min(t.y1, clamped_floor((v + e.ext_y - 0.5) / kTileSize, bins.tiles_y - 1) + 1);
+    if (t.empty()) return PackedRect{0, 0, 0, 0};
+    return PackedRect{uint16_t(t.x0), uint16_t(t.y0), uint16_t(t.x1), uint16_t(t.y1)};
   };
-  for (int64_t i = 0; i < count; ++i)
-    if (radii[i] > 0) gauss_rects[i] = rect_of(int32_t(i));
-  for (int32_t r = 0; r < visible; ++r) {
-    const TileRect t = rects[r] = gauss_rects[bins.order[r]];
+  for (int64_t i = 0; i < count; ++i) {
+    if (radii[i] <= 0) continue;
+    const PackedRect t = rects[i] = rect_of(int32_t(i));
     for (int ty = t.y0; ty < t.y1; ++ty)
       for (int tx = t.x0; tx < t.x1; ++tx) ++counts[ty * bins.tiles_x + tx + 1];
   }
@@ -146,7 +148,7 @@ void bin_gaussians(const float* means2d, const float* conics, const float* opaci
   bins.ranks.resize(bins.offsets[n_tiles]);
   std::vector<int32_t> cursor(bins.offsets.begin(), bins.offsets.end() - 1);
   for (int32_t r = 0; r < visible; ++r) {
-    const TileRect& t = rects[r];
+    const PackedRect t = rects[bins.order[r]];
     for (int ty = t.y0; ty < t.y1; ++ty)
       for (int tx = t.x0; tx < t.x1; ++tx) bins.ranks[cursor[ty * bins.tiles_x + tx]++] = r;
   }

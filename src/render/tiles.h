@@ -14,16 +14,20 @@ struct TileRect {
   bool empty() const { return x1 <= x0 || y1 <= y0; }
 };
 
+// floor(x) clamped to [0, n] as an int; NaN gives 0. Plain comparisons, not
+// std::fmin / std::fmax, which GCC leaves as library calls.
+inline int clamped_floor(double x, int n) {
+  const double f = std::floor(x);
+  return !(f > 0.0) ? 0 : f < double(n) ? int(f) : n;
+}
+
 // Tiles covered by the square of half-width radius_px around (u, v), as in
 // 3DGS's getRect. Clamps in floating point first so off-screen values far out
 // of int range stay well defined.
 inline TileRect tile_rect(double u, double v, double radius_px, int tiles_x, int tiles_y) {
-  auto lo = [](double c, double r, int n) {
-    return int(std::fmin(double(n), std::fmax(0.0, std::floor((c - r) / kTileSize))));
-  };
+  auto lo = [](double c, double r, int n) { return clamped_floor((c - r) / kTileSize, n); };
   auto hi = [](double c, double r, int n) {
-    return int(
-        std::fmin(double(n), std::fmax(0.0, std::floor((c + r + kTileSize - 1) / kTileSize))));
+    return clamped_floor((c + r + kTileSize - 1) / kTileSize, n);
   };
   return {lo(u, radius_px, tiles_x), lo(v, radius_px, tiles_y), hi(u, radius_px, tiles_x),
           hi(v, radius_px, tiles_y)};
