@@ -92,6 +92,45 @@ GaussianGeometry geometry(const float* m, const float* ls, const float* qr, cons
   return g;
 }
 
+// The forward's share of geometry(): camera-space mean mc and dilated 2D
+// covariance cov2 (a, b, c) by the same formulas, without the intermediates
+// only the backward needs: T Sigma T^T is formed as M M^T with
+// M = T R diag(scale), about half the arithmetic and no divisions by z.
+void mean_and_cov2(const float* m, const float* ls, const float* qr, const RenderCamera& cam,
+                   const std::array<double, 4>& lim, double mc[3], double cov2[3]) {
+  const float* v = cam.world_to_camera;
+  for (int r = 0; r < 3; ++r)
+    mc[r] = v[r * 4] * double(m[0]) + v[r * 4 + 1] * double(m[1]) + v[r * 4 + 2] * double(m[2]) +
+            v[r * 4 + 3];
+  const double inv_norm = 1.0 / std::sqrt(double(qr[0]) * qr[0] + double(qr[1]) * qr[1] +
+                                          double(qr[2]) * qr[2] + double(qr[3]) * qr[3]);
+  const M3 rq =
+      rotation_from({qr[0] * inv_norm, qr[1] * inv_norm, qr[2] * inv_norm, qr[3] * inv_norm});
+  const double inv_z = 1.0 / mc[2];
+  const double tx = mc[0] * inv_z, ty = mc[1] * inv_z;
+  const double rx = tx < -lim[0] ? -lim[0] : tx > lim[1] ? lim[1] : tx;
+  const double ry = ty < -lim[2] ? -lim[2] : ty > lim[3] ? lim[3] : ty;
+  // Rows of T = J W: (fx / z) (W0 - rx W2) and (fy / z) (W1 - ry W2).
+  double t[2][3];
+  for (int c = 0; c < 3; ++c) {
+    t[0][c] = cam.fx * inv_z * (v[c] - rx * v[8 + c]);
+    t[1][c] = cam.fy * inv_z * (v[4 + c] - ry * v[8 + c]);
+  }
+  double mm[2][3];
+  for (int k = 0; k < 3; ++k) {
+    const double s = std::exp(double(ls[k]));
+    for (int r = 0; r < 2; ++r)
+      mm[r][k] = s * (t[r][0] * rq[k] + t[r][1] * rq[3 + k] + t[r][2] * rq[6 + k]);
+  }
+  auto dot3 = [](const double* a, const double* b) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  };
+  // 0.3 px^2 dilation, as in geometry().
+  cov2[0] = dot3(mm[0], mm[0]) + 0.3;
+  cov2[1] = dot3(mm[0], mm[1]);
+  cov2[2] = dot3(mm[1], mm[1]) + 0.3;
+}
+
 }  // namespace
 
 std::array<double, 4> jacobian_clamp_limits(const RenderCamera& cam) {
@@ -130,10 +169,11 @@ Projected project_forward(const torch::Tensor& means, const torch::Tensor& log_s
       const double z = v[8] * double(mi[0]) + v[9] * double(mi[1]) + v[10] * double(mi[2]) + v[11];
       dep[i] = float(z);
       if (!(z > cam.near_plane)) continue;
-      const GaussianGeometry g = geometry(mi, ls + 3 * i, qr + 4 * i, cam, lim);
-      const double u = cam.fx * g.mc[0] / z + cam.cx, w = cam.fy * g.mc[1] / z + cam.cy;
+      double mc[3], cov2[3];
+      mean_and_cov2(mi, ls + 3 * i, qr + 4 * i, cam, lim, mc, cov2);
+      const double u = cam.fx * mc[0] / z + cam.cx, w = cam.fy * mc[1] / z + cam.cy;
       m2[2 * i] = float(u), m2[2 * i + 1] = float(w);
-      const double a = g.cov2[0], b = g.cov2[1], c = g.cov2[2];
+      const double a = cov2[0], b = cov2[1], c = cov2[2];
       const double det = a * c - b * b;
       if (!(det > 0)) continue;
       con[3 * i] = float(c / det), con[3 * i + 1] = float(-b / det),
