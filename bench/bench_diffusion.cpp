@@ -23,14 +23,13 @@ void BM_UNetTrainStep(benchmark::State& state) {
   core::configure_threads();
   const int64_t bands = state.range(0), crop_px = state.range(1);
   torch::manual_seed(0);
-  auto unet = unet_of_width(bands, state.range(2));
-  model::NoiseSchedule schedule;
+  const model::Denoiser denoiser{unet_of_width(bands, state.range(2)), model::NoiseSchedule()};
   auto gt = torch::rand({crop_px, crop_px, bands});
   auto render = torch::rand({crop_px, crop_px, bands}).requires_grad_(true);
   auto generator = at::make_generator<at::CPUGeneratorImpl>(1);
   for (auto _ : state) {
-    unet->zero_grad();
-    model::view_diffusion_loss(unet, schedule, gt, render, crop_px, generator).backward();
+    denoiser.unet->zero_grad();
+    model::view_diffusion_loss(denoiser, gt, render, crop_px, generator).backward();
   }
   state.counters["steps/s"] =
       benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
@@ -47,13 +46,11 @@ void BM_DdimDenoise(benchmark::State& state) {
   core::configure_threads();
   const int64_t bands = state.range(0), steps = state.range(1);
   torch::manual_seed(0);
-  auto unet = unet_of_width(bands, state.range(2));
-  model::NoiseSchedule schedule;
+  const model::Denoiser denoiser{unet_of_width(bands, state.range(2)), model::NoiseSchedule()};
   auto render = torch::rand({96, 128, bands});
   model::SamplerOptions options;
   options.steps = steps;
-  for (auto _ : state)
-    benchmark::DoNotOptimize(model::denoise_view(unet, schedule, render, options));
+  for (auto _ : state) benchmark::DoNotOptimize(model::denoise_view(denoiser, render, options));
   state.counters["frames/s"] =
       benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
 }

@@ -91,7 +91,7 @@ Action setup(CLI::App& parent) {
       if (args->denoise > 0) sampler.steps = args->denoise;
       sampler.validate(run.denoiser->schedule.steps, "--denoise");
       options.transform = [&run, sampler](const torch::Tensor& image) {
-        return eval::denoise_render(*run.denoiser, image, sampler);
+        return model::denoise_view(*run.denoiser, image, sampler);
       };
       folder += args->ddpm ? "_ddpm" : "_ddim" + std::to_string(sampler.steps);
     }

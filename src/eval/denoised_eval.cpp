@@ -47,11 +47,6 @@ std::vector<DenoiseSetting> denoise_settings(const std::vector<int64_t>& ddim_st
   return settings;
 }
 
-torch::Tensor denoise_render(model::Denoiser& denoiser, const torch::Tensor& render,
-                             const model::SamplerOptions& sampler) {
-  return model::denoise_view(denoiser.unet, denoiser.schedule, render, sampler);
-}
-
 DenoisedReport evaluate_denoised(const io::Scene& scene, const model::Gaussians& gaussians,
                                  const torch::Tensor& background, model::Denoiser& denoiser,
                                  const std::vector<int>& views, const std::string& split_name,
@@ -74,12 +69,12 @@ DenoisedReport evaluate_denoised(const io::Scene& scene, const model::Gaussians&
         model::render_gaussians(gaussians, scene.views[size_t(v)].camera, background).image;
     render_ms += ms_since(start);
     // The first sampler call pays for allocator growth and cold caches.
-    if (i == 0 && !settings.empty()) denoise_render(denoiser, render, settings.front().sampler);
+    if (i == 0 && !settings.empty()) model::denoise_view(denoiser, render, settings.front().sampler);
     torch::Tensor truth = scene.image(v), clean_truth = scene.clean_image(v);
     for (size_t s = 0; s < settings.size(); ++s) {
       DenoisedResult& result = report.results[s];
       start = Clock::now();
-      torch::Tensor denoised = denoise_render(denoiser, render, settings[s].sampler);
+      torch::Tensor denoised = model::denoise_view(denoiser, render, settings[s].sampler);
       result.denoise_ms += ms_since(start);
       stored[s].push_back(compute_metrics(denoised, truth));
       result.per_view.push_back({name, "views", stored[s].back()});

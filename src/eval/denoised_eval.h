@@ -46,12 +46,6 @@ struct DenoisedReport {
   }
 };
 
-// The denoised image of one render, [H, W, N] in [0, 1]. The render goes in
-// unclamped, as the condition did in training.
-torch::Tensor denoise_render(model::Denoiser& denoiser,
-                             const torch::Tensor& render,  // [H, W, N]
-                             const model::SamplerOptions& sampler);
-
 // Renders each view once and denoises it with every setting; one untimed
 // warm-up denoise precedes the timed ones.
 DenoisedReport evaluate_denoised(const io::Scene& scene, const model::Gaussians& gaussians,

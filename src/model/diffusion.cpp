@@ -142,26 +142,49 @@ torch::Tensor q_sample(const NoiseSchedule& schedule, const torch::Tensor& x0,
          per_sample(schedule.sqrt_one_minus_alphas_cumprod, t, x0) * eps;
 }
 
-NoisePredictor as_predictor(UNet unet) {
-  return [unet](const torch::Tensor& x_t, const torch::Tensor& cond,
-                const torch::Tensor& t) mutable { return unet->forward(x_t, cond, t); };
+Prediction parse_prediction(const std::string& name, const std::string& where) {
+  if (name == "eps") return Prediction::Eps;
+  if (name == "residual") return Prediction::Residual;
+  throw core::Error(where + ": prediction must be \"eps\" or \"residual\", got \"" + name + "\"");
+}
+
+std::string to_string(Prediction prediction) {
+  return prediction == Prediction::Eps ? "eps" : "residual";
+}
+
+NoisePredictor as_predictor(const Denoiser& denoiser) {
+  UNet unet = denoiser.unet;
+  if (denoiser.prediction == Prediction::Eps)
+    return [unet](const torch::Tensor& x_t, const torch::Tensor& cond,
+                  const torch::Tensor& t) mutable { return unet->forward(x_t, cond, t); };
+  const NoiseSchedule& schedule = denoiser.schedule;
+  return [unet, a = schedule.sqrt_alphas_cumprod, b = schedule.sqrt_one_minus_alphas_cumprod](
+             const torch::Tensor& x_t, const torch::Tensor& cond, const torch::Tensor& t) mutable {
+    auto x0 = cond + unet->forward(x_t, cond, t);
+    return (x_t - per_sample(a, t, x_t) * x0) / per_sample(b, t, x_t);
+  };
 }
 
 torch::Tensor diffusion_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                              const torch::Tensor& x_gt, const torch::Tensor& cond,
-                             at::Generator& generator) {
+                             at::Generator& generator, double min_snr_gamma) {
   TORCH_CHECK(cond.dim() == 4 && x_gt.sizes() == cond.sizes(), "diffusion_loss: x_gt ",
               x_gt.sizes(), " must match cond ", cond.sizes());
   auto t = torch::randint(0, schedule.steps, {x_gt.size(0)}, generator,
                           torch::TensorOptions().dtype(torch::kLong));
   auto eps = torch::randn(x_gt.sizes(), generator, x_gt.options());
   auto x_t = q_sample(schedule, to_model_space(x_gt.detach()), t, eps);
-  return torch::mse_loss(predictor(x_t, to_model_space(cond), t), eps);
+  auto error = (predictor(x_t, to_model_space(cond), t) - eps).square();
+  if (min_snr_gamma <= 0) return error.mean();
+  auto abar = per_sample(schedule.alphas_cumprod, t, x_t).to(torch::kDouble);
+  auto snr = abar / (1.0 - abar);
+  auto weight = (snr.clamp_max(min_snr_gamma) / snr).to(error.dtype()).flatten();  // [B]
+  return (error.flatten(1).mean(1) * weight).mean();
 }
 
-torch::Tensor view_diffusion_loss(UNet& unet, const NoiseSchedule& schedule,
-                                  const torch::Tensor& gt, const torch::Tensor& render,
-                                  int64_t crop_px, at::Generator& generator) {
+torch::Tensor view_diffusion_loss(const Denoiser& denoiser, const torch::Tensor& gt,
+                                  const torch::Tensor& render, int64_t crop_px,
+                                  at::Generator& generator, double min_snr_gamma) {
   TORCH_CHECK(gt.dim() == 3 && gt.sizes() == render.sizes(), "view_diffusion_loss: gt ", gt.sizes(),
               " and render ", render.sizes(), " must be the same [H, W, N]");
   const int64_t h = gt.size(0), w = gt.size(1);
@@ -174,7 +197,8 @@ torch::Tensor view_diffusion_loss(UNet& unet, const NoiseSchedule& schedule,
   auto crop = [&](const torch::Tensor& image) {
     return image.slice(0, y0, y0 + ch).slice(1, x0, x0 + cw).permute({2, 0, 1}).unsqueeze(0);
   };
-  return diffusion_loss(as_predictor(unet), schedule, crop(gt), crop(render), generator);
+  return diffusion_loss(as_predictor(denoiser), denoiser.schedule, crop(gt), crop(render),
+                        generator, min_snr_gamma);
 }
 
 void SamplerOptions::validate(int64_t schedule_steps, const std::string& where) const {
@@ -251,11 +275,11 @@ torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& sched
                      options.start_strength);
 }
 
-torch::Tensor denoise_view(UNet& unet, const NoiseSchedule& schedule, const torch::Tensor& render,
+torch::Tensor denoise_view(const Denoiser& denoiser, const torch::Tensor& render,
                            const SamplerOptions& options) {
   TORCH_CHECK(render.dim() == 3, "denoise_view: render must be [H, W, N], got ", render.sizes());
   auto cond = render.permute({2, 0, 1}).unsqueeze(0).contiguous();
-  return sample(as_predictor(unet), schedule, cond, options)
+  return sample(as_predictor(denoiser), denoiser.schedule, cond, options)
       .squeeze(0)
       .permute({1, 2, 0})
       .contiguous();
@@ -267,7 +291,8 @@ void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& 
   const nlohmann::json schedule = {{"steps", s.steps},
                                    {"kind", to_string(s.kind)},
                                    {"beta_start", s.beta_start},
-                                   {"beta_end", s.beta_end}};
+                                   {"beta_end", s.beta_end},
+                                   {"prediction", to_string(denoiser.prediction)}};
   archive.write(key + "_schedule_json", c10::IValue(schedule.dump()));
   save_unet(archive, key, denoiser.unet);
 }
@@ -284,6 +309,8 @@ Denoiser load_denoiser(torch::serialize::InputArchive& archive, const std::strin
         NoiseSchedule(j.at("steps").get<int64_t>(),
                       parse_beta_schedule(j.at("kind").get<std::string>(), file.string()),
                       j.at("beta_start").get<double>(), j.at("beta_end").get<double>());
+    // Denoisers written before the residual parameterisation predicted eps.
+    denoiser.prediction = parse_prediction(j.value("prediction", "eps"), file.string());
   } catch (const nlohmann::json::exception& e) {
     throw core::Error(file, "denoiser noise schedule is malformed: " + std::string(e.what()));
   }

@@ -62,29 +62,57 @@ torch::Tensor q_sample(const NoiseSchedule& schedule,
                        const torch::Tensor& t,     // [B] int64 steps in [0, T)
                        const torch::Tensor& eps);  // [B, N, H, W]
 
+// What the U-Net's output means.
+//  Eps (the paper): the noise, eps_theta = U(x_t, t, cond).
+//  Residual: a correction of the condition, x0_theta = cond + U(x_t, t, cond),
+//    turned into eps_theta = (x_t - sqrt(abar_t) x0_theta) / sqrt(1 - abar_t).
+//    The U-Net's last layer starts at zero, so an untrained (or useless)
+//    denoiser returns the render itself instead of noise: the denoised
+//    output can only move away from the render where training taught it to.
+enum class Prediction { Eps, Residual };
+
+// "eps" or "residual"; throws core::Error naming `where` otherwise.
+Prediction parse_prediction(const std::string& name, const std::string& where);
+std::string to_string(Prediction prediction);
+
+// What a trained denoiser needs at inference: the network, the schedule it
+// was trained with and what its output means. Checkpoints store all three, so
+// eval cannot mix them.
+struct Denoiser {
+  UNet unet{nullptr};
+  NoiseSchedule schedule;
+  Prediction prediction = Prediction::Eps;
+};
+
 // Predicted noise eps_theta(x_t, t | cond), all in model space. The U-Net is
 // one; tests plug in analytic predictors.
 using NoisePredictor = std::function<torch::Tensor(const torch::Tensor& x_t,   // [B, N, H, W]
                                                    const torch::Tensor& cond,  // [B, N, H, W]
                                                    const torch::Tensor& t)>;   // [B] int64
-NoisePredictor as_predictor(UNet unet);
+NoisePredictor as_predictor(const Denoiser& denoiser);
 
-// Mean over elements of (eps - eps_theta(x_t, t | cond))^2 with t uniform in
-// [0, T) per sample and eps standard normal, both drawn from `generator`.
-// x_gt and cond in [0, 1]. Differentiable w.r.t. the predictor's parameters
-// and cond (the render: joint training lets the loss reach the Gaussians).
+// Mean over samples of w(t) * mean over elements of (eps - eps_theta(x_t, t |
+// cond))^2 with t uniform in [0, T) per sample and eps standard normal, both
+// drawn from `generator`. w(t) = 1 (the paper) when min_snr_gamma <= 0, else
+// min(SNR_t, gamma) / SNR_t with SNR_t = abar_t / (1 - abar_t) ("Min-SNR"
+// weighting, Hang et al. 2023): in x0 terms the error at nearly clean steps
+// is weighted gamma instead of up to 1 / beta_1 = 1e4, which matters when the
+// gradient reaches the render through the condition. x_gt and cond in [0, 1].
+// Differentiable w.r.t. the predictor's parameters and cond (the render:
+// joint training lets the loss reach the Gaussians).
 torch::Tensor diffusion_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                              const torch::Tensor& x_gt,  // [B, N, H, W]
                              const torch::Tensor& cond,  // [B, N, H, W]
-                             at::Generator& generator);
+                             at::Generator& generator, double min_snr_gamma = 0.0);
 
 // The same on one view, channels-last as the renderer produces it, on one
 // random crop_px x crop_px window (the whole view if it is smaller) shared by
 // both images; crop_px <= 0 uses the whole view.
-torch::Tensor view_diffusion_loss(UNet& unet, const NoiseSchedule& schedule,
+torch::Tensor view_diffusion_loss(const Denoiser& denoiser,
                                   const torch::Tensor& gt,      // [H, W, N] in [0, 1]
                                   const torch::Tensor& render,  // [H, W, N] in [0, 1]
-                                  int64_t crop_px, at::Generator& generator);
+                                  int64_t crop_px, at::Generator& generator,
+                                  double min_snr_gamma = 0.0);
 
 enum class SamplerMethod { Ddpm, Ddim };
 
@@ -120,13 +148,6 @@ torch::Tensor ddim_sample(const NoisePredictor& predictor, const NoiseSchedule& 
                           const torch::Tensor& cond,  // [B, N, H, W]
                           int64_t steps, double eta, uint64_t seed, double start_strength = 1.0);
 
-// What a trained denoiser needs at inference: the network and the schedule it
-// was trained with. Checkpoints store both, so eval cannot mix schedules.
-struct Denoiser {
-  UNet unet{nullptr};
-  NoiseSchedule schedule;
-};
-
 void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& key,
                    Denoiser& denoiser);
 // Throws core::Error naming `file` when the key is missing or malformed.
@@ -138,8 +159,10 @@ torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& sched
                      const torch::Tensor& cond,  // [B, N, H, W]
                      const SamplerOptions& options);
 
-// The denoised view for a render, channels-last in and out, [H, W, N] in [0, 1].
-torch::Tensor denoise_view(UNet& unet, const NoiseSchedule& schedule,
+// The denoised view for a render, channels-last in and out, [H, W, N]; the
+// render goes in unclamped, as the condition did in training, and comes out
+// in [0, 1].
+torch::Tensor denoise_view(const Denoiser& denoiser,
                            const torch::Tensor& render,  // [H, W, N]
                            const SamplerOptions& options);
 

@@ -158,12 +158,20 @@ json load_preset(const std::string& name_or_path) {
 
 namespace {
 
+// Keys whose default is not what runs made before the key existed did: such
+// a run gets the value that reproduces it. (The denoiser predicted eps with an
+// unweighted loss before the residual parameterisation became the default.)
+const json& legacy_values() {
+  static const json values = {{"diffusion.prediction", "eps"}, {"diffusion.min_snr_gamma", 0.0}};
+  return values;
+}
+
 void add_missing(const json& schema, json& config, const std::string& prefix,
                  std::vector<std::string>& added) {
   for (const auto& [key, value] : schema.items()) {
     const std::string path = prefix.empty() ? key : prefix + "." + key;
     if (!config.contains(key)) {
-      config[key] = value;
+      config[key] = legacy_values().value(path, value);
       added.push_back(path);
     } else if (value.is_object() && config[key].is_object()) {
       add_missing(value, config[key], path, added);

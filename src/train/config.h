@@ -29,8 +29,10 @@ nlohmann::json load_preset(const std::string& name_or_path);
 
 // Adds the keys of default.json that `config` lacks, with their default
 // values: keys introduced after an older run was made. Every new component
-// defaults to off, so the older run keeps its behaviour. Returns the dotted
-// names of the keys added.
+// defaults to off, and keys whose default changes what existing components do
+// get the value that reproduces the older run (diffusion.prediction "eps",
+// diffusion.min_snr_gamma 0), so the older run keeps its behaviour. Returns
+// the dotted names of the keys added.
 std::vector<std::string> add_missing_keys(nlohmann::json& config);
 
 // Validates a resolved config (e.g. a run's config.json) read from `source`.

@@ -35,6 +35,9 @@ DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
   o.lr = read_key<double>(d, "lr", where);
   o.condition_grad = read_key<bool>(d, "condition_grad", where);
   o.condition_noise = read_key<double>(d, "condition_noise", where);
+  o.prediction =
+      model::parse_prediction(read_key<std::string>(d, "prediction", where), where + ": diffusion");
+  o.min_snr_gamma = read_key<double>(d, "min_snr_gamma", where);
   o.unet = model::unet_options_from_json(d, where + ": diffusion");
   o.unet.bands = bands;
   o.schedule_steps = read_key<int64_t>(d, "steps", where);
@@ -61,6 +64,7 @@ DiffusionTerm::DiffusionTerm(const DiffusionTermOptions& options, uint64_t init_
   denoiser_->unet = model::UNet(options_.unet);
   denoiser_->schedule = model::NoiseSchedule(options_.schedule_steps, options_.schedule,
                                              options_.beta_start, options_.beta_end);
+  denoiser_->prediction = options_.prediction;
 }
 
 LossTerm DiffusionTerm::loss_term() {
@@ -78,8 +82,8 @@ torch::Tensor diffusion_term_loss(model::Denoiser& denoiser, const DiffusionTerm
   torch::Tensor cond = options.condition_grad ? render : render.detach();
   if (options.condition_noise > 0)
     cond = cond + options.condition_noise * torch::randn(cond.sizes(), generator, cond.options());
-  return model::view_diffusion_loss(denoiser.unet, denoiser.schedule, target.to(render.dtype()),
-                                    cond, options.crop_px, generator);
+  return model::view_diffusion_loss(denoiser, target.to(render.dtype()), cond, options.crop_px,
+                                    generator, options.min_snr_gamma);
 }
 
 fs::path denoiser_path(const RunPaths& run) {

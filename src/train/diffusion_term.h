@@ -30,6 +30,10 @@ struct DiffusionTermOptions {
   // during training only, so the U-Net also sees renders worse than those of
   // training views (which the Gaussians fit closely); 0 = paper.
   double condition_noise = 0;
+  // What the U-Net predicts (see model::Prediction) and the Min-SNR gamma of
+  // the loss weighting (<= 0: unweighted, the paper).
+  model::Prediction prediction = model::Prediction::Eps;
+  double min_snr_gamma = 0;
   model::UNetOptions unet;  // bands set from the data
   int64_t schedule_steps = 1000;
   model::BetaSchedule schedule = model::BetaSchedule::Linear;

@@ -199,25 +199,69 @@ TEST(Samplers, FewStepDdimMatchesItsAnalyticMapOnGaussianData) {
 }
 
 TEST(Samplers, SeededSamplingIsDeterministic) {
-  auto unet = test::live_unet(test::tiny_unet_options(3), 11);
-  model::NoiseSchedule s;
+  const model::Denoiser d{test::live_unet(test::tiny_unet_options(3), 11), model::NoiseSchedule()};
   auto render = torch::rand({9, 7, 3});
   model::SamplerOptions o;
   o.steps = 5;
   o.eta = 0.5;
   o.seed = 77;
-  auto a = model::denoise_view(unet, s, render, o);
-  auto b = model::denoise_view(unet, s, render, o);
+  auto a = model::denoise_view(d, render, o);
+  auto b = model::denoise_view(d, render, o);
   ASSERT_EQ(a.sizes(), render.sizes());
   EXPECT_TRUE(torch::equal(a, b));
   EXPECT_GE(a.min().item<double>(), 0.0);
   EXPECT_LE(a.max().item<double>(), 1.0);
   o.seed = 78;
-  EXPECT_FALSE(torch::equal(a, model::denoise_view(unet, s, render, o)));
+  EXPECT_FALSE(torch::equal(a, model::denoise_view(d, render, o)));
   o.method = model::SamplerMethod::Ddpm;
   o.start_strength = 0.01;  // 10 steps
-  auto c = model::denoise_view(unet, s, render, o);
-  EXPECT_TRUE(torch::equal(c, model::denoise_view(unet, s, render, o)));
+  auto c = model::denoise_view(d, render, o);
+  EXPECT_TRUE(torch::equal(c, model::denoise_view(d, render, o)));
+}
+
+// The residual parameterisation's point: a U-Net that has learnt nothing
+// (last layer zero, as constructed) predicts x0 = cond at every step, so
+// every sampler, from any start, ends at the render itself.
+TEST(Samplers, UntrainedResidualDenoiserReturnsTheRender) {
+  torch::manual_seed(12);
+  const model::Denoiser d{model::UNet(test::tiny_unet_options(4)), model::NoiseSchedule(),
+                          model::Prediction::Residual};
+  auto render = torch::rand({11, 6, 4}) * 0.98 + 0.01;
+  for (double strength : {0.05, 0.4, 1.0}) {
+    for (auto method : {model::SamplerMethod::Ddim, model::SamplerMethod::Ddpm}) {
+      model::SamplerOptions o;
+      o.method = method;
+      o.start_strength = method == model::SamplerMethod::Ddpm ? strength / 10 : strength;
+      o.steps = 7;
+      o.eta = 0.5;
+      o.seed = 3;
+      auto out = model::denoise_view(d, render, o);
+      EXPECT_LT((out - render).abs().max().item<double>(), 1e-5)
+          << "strength " << o.start_strength
+          << (method == model::SamplerMethod::Ddpm ? " ddpm" : " ddim");
+    }
+  }
+  // The same untrained U-Net as an eps predictor gives noise-driven output.
+  const model::Denoiser eps{d.unet, d.schedule, model::Prediction::Eps};
+  model::SamplerOptions o;
+  o.start_strength = 0.4;
+  EXPECT_GT((model::denoise_view(eps, render, o) - render).abs().max().item<double>(), 0.05);
+}
+
+// Residual: the noise the predictor reports implies x0 = cond + U(x_t, t, cond).
+TEST(Samplers, ResidualPredictionImpliesConditionPlusNetworkOutput) {
+  const model::Denoiser d{test::live_unet(test::tiny_unet_options(2), 21), model::NoiseSchedule(),
+                          model::Prediction::Residual};
+  torch::manual_seed(22);
+  auto x_t = torch::randn({2, 2, 8, 6}), cond = torch::rand({2, 2, 8, 6}) * 2 - 1;
+  auto t = torch::tensor({3, 640}, torch::kLong);
+  auto eps = model::as_predictor(d)(x_t, cond, t);
+  auto abar = abar_of(d.schedule, t, x_t);
+  auto x0 = (x_t - (1 - abar).sqrt() * eps) / abar.sqrt();
+  model::UNet unet = d.unet;
+  auto correction = unet->forward(x_t, cond, t);
+  EXPECT_LT((x0 - (cond + correction)).abs().max().item<double>(), 2e-4);
+  EXPECT_GT(correction.abs().max().item<double>(), 1e-3);  // not trivially cond
 }
 
 // A predictor that knows the clean image is the condition drives the loss to
@@ -239,40 +283,64 @@ TEST(DiffusionLoss, ZeroForTheExactPredictorAndOneForZeroNoise) {
   EXPECT_NEAR(model::diffusion_loss(zero, s, big, big, generator).item<double>(), 1.0, 0.02);
 }
 
-TEST(DiffusionLoss, AdamStepsLowerTheLossOnAFixedBatch) {
-  torch::manual_seed(14);
-  model::UNet unet(test::tiny_unet_options(3));
-  model::NoiseSchedule s;
-  auto gt = torch::rand({4, 3, 16, 16});
-  auto cond = (gt + 0.05 * torch::randn({4, 3, 16, 16})).clamp(0, 1);
-  auto predictor = model::as_predictor(unet);
-  auto fixed_loss = [&] {
-    torch::NoGradGuard no_grad;
-    auto generator = at::make_generator<at::CPUGeneratorImpl>(99);
-    double total = 0;
-    for (int i = 0; i < 4; ++i)
-      total += model::diffusion_loss(predictor, s, gt, cond, generator).item<double>();
-    return total / 4;
+// With one step (t = 0 always) SNR = (1 - beta) / beta = 4 for beta = 0.2, so
+// Min-SNR weighting scales the loss by min(4, gamma) / 4 on the same draws.
+TEST(DiffusionLoss, MinSnrWeightScalesByGammaOverSnr) {
+  const model::NoiseSchedule s(1, model::BetaSchedule::Linear, 0.2, 0.2);
+  auto x = torch::rand({3, 2, 5, 5});
+  auto zero = [](const torch::Tensor& x_t, const torch::Tensor&, const torch::Tensor&) {
+    return torch::zeros_like(x_t);
   };
-  const double before = fixed_loss();
-  torch::optim::Adam adam(unet->parameters(), torch::optim::AdamOptions(2e-3));
-  auto generator = at::make_generator<at::CPUGeneratorImpl>(1);
-  for (int step = 0; step < 40; ++step) {
-    adam.zero_grad();
-    model::diffusion_loss(predictor, s, gt, cond, generator).backward();
-    adam.step();
+  auto loss = [&](double gamma) {
+    auto generator = at::make_generator<at::CPUGeneratorImpl>(8);
+    return model::diffusion_loss(zero, s, x, x, generator, gamma).item<double>();
+  };
+  const double plain = loss(0.0);
+  EXPECT_GT(plain, 0.5);
+  EXPECT_NEAR(loss(1.0) / plain, 0.25, 1e-5);
+  EXPECT_NEAR(loss(2.0) / plain, 0.5, 1e-5);
+  EXPECT_NEAR(loss(5.0) / plain, 1.0, 1e-6);
+}
+
+TEST(DiffusionLoss, AdamStepsLowerTheLossOnAFixedBatch) {
+  // Residual with Min-SNR: the condition misses a smooth offset the U-Net can learn.
+  for (auto prediction : {model::Prediction::Eps, model::Prediction::Residual}) {
+    torch::manual_seed(14);
+    const model::Denoiser d{model::UNet(test::tiny_unet_options(3)), model::NoiseSchedule(),
+                            prediction};
+    const double gamma = prediction == model::Prediction::Residual ? 5.0 : 0.0;
+    auto gt = torch::rand({4, 3, 16, 16});
+    auto cond = (gt + 0.05 * torch::randn({4, 3, 16, 16}) - 0.1).clamp(0, 1);
+    auto predictor = model::as_predictor(d);
+    auto fixed_loss = [&] {
+      torch::NoGradGuard no_grad;
+      auto generator = at::make_generator<at::CPUGeneratorImpl>(99);
+      double total = 0;
+      for (int i = 0; i < 4; ++i)
+        total +=
+            model::diffusion_loss(predictor, d.schedule, gt, cond, generator, gamma).item<double>();
+      return total / 4;
+    };
+    const double before = fixed_loss();
+    torch::optim::Adam adam(d.unet->parameters(), torch::optim::AdamOptions(2e-3));
+    auto generator = at::make_generator<at::CPUGeneratorImpl>(1);
+    for (int step = 0; step < 40; ++step) {
+      adam.zero_grad();
+      model::diffusion_loss(predictor, d.schedule, gt, cond, generator, gamma).backward();
+      adam.step();
+    }
+    const double after = fixed_loss();
+    EXPECT_LT(after, 0.7 * before)
+        << model::to_string(prediction) << ": " << before << " -> " << after;
   }
-  const double after = fixed_loss();
-  EXPECT_LT(after, 0.7 * before) << before << " -> " << after;
 }
 
 TEST(DiffusionLoss, ViewLossCropsBothImagesAtOneWindowAndReachesTheRender) {
-  auto unet = test::live_unet(test::tiny_unet_options(3), 15);
-  model::NoiseSchedule s;
+  const model::Denoiser d{test::live_unet(test::tiny_unet_options(3), 15), model::NoiseSchedule()};
   auto gt = torch::rand({20, 17, 3});
   auto render = torch::rand({20, 17, 3}).requires_grad_(true);
   auto generator = at::make_generator<at::CPUGeneratorImpl>(17);
-  auto loss = model::view_diffusion_loss(unet, s, gt, render, 8, generator);
+  auto loss = model::view_diffusion_loss(d, gt, render, 8, generator);
   ASSERT_EQ(loss.dim(), 0);
   loss.backward();
   auto touched = render.grad().abs().sum(2) > 0;  // [H, W]
@@ -283,13 +351,14 @@ TEST(DiffusionLoss, ViewLossCropsBothImagesAtOneWindowAndReachesTheRender) {
   EXPECT_EQ(rows.max().item<int64_t>() - rows.min().item<int64_t>(), 7);
 
   render.mutable_grad().zero_();
-  model::view_diffusion_loss(unet, s, gt, render, 64, generator).backward();
+  model::view_diffusion_loss(d, gt, render, 64, generator).backward();
   EXPECT_EQ((render.grad().abs().sum(2) > 0).sum().item<int64_t>(), 20 * 17);
 }
 
 TEST(Denoiser, CheckpointKeepsTheScheduleWithTheNetwork) {
   model::Denoiser denoiser{test::live_unet(test::tiny_unet_options(2), 18),
-                           model::NoiseSchedule(500, model::BetaSchedule::Cosine)};
+                           model::NoiseSchedule(500, model::BetaSchedule::Cosine),
+                           model::Prediction::Residual};
   const auto file = test::temp_dir("denoiser_roundtrip") / "ckpt.pt";
   {
     torch::serialize::OutputArchive archive;
@@ -302,10 +371,11 @@ TEST(Denoiser, CheckpointKeepsTheScheduleWithTheNetwork) {
   EXPECT_EQ(loaded.schedule.steps, 500);
   EXPECT_EQ(loaded.schedule.kind, model::BetaSchedule::Cosine);
   EXPECT_TRUE(torch::equal(loaded.schedule.betas, denoiser.schedule.betas));
+  EXPECT_EQ(loaded.prediction, model::Prediction::Residual);
   model::SamplerOptions o;
   o.seed = 5;
   auto render = torch::rand({6, 5, 2});
-  EXPECT_TRUE(torch::equal(model::denoise_view(denoiser.unet, denoiser.schedule, render, o),
-                           model::denoise_view(loaded.unet, loaded.schedule, render, o)));
+  EXPECT_TRUE(torch::equal(model::denoise_view(denoiser, render, o),
+                           model::denoise_view(loaded, render, o)));
   EXPECT_THROW(model::load_denoiser(archive, "other", file), core::Error);
 }

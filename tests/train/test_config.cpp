@@ -131,6 +131,16 @@ TEST(Config, OlderRunConfigsTakeDefaultsForKeysAddedLater) {
   EXPECT_EQ(read["iterations"], 1234);
   EXPECT_EQ(read["wavelength_encoder"], train::load_preset("default")["wavelength_encoder"]);
   EXPECT_EQ(read["densify"]["every"], train::load_preset("default")["densify"]["every"]);
+  // A run from before the residual denoiser keeps the eps parameterisation and
+  // the unweighted loss it was trained with, whatever today's defaults say.
+  c["diffusion"].erase("prediction");
+  c["diffusion"].erase("min_snr_gamma");
+  c["iterations"] = 1234;
+  std::ofstream(dir / "config.json") << c.dump(2);
+  read = train::read_run_config({dir});
+  EXPECT_EQ(train::load_preset("default")["diffusion"]["prediction"], "residual");
+  EXPECT_EQ(read["diffusion"]["prediction"], "eps");
+  EXPECT_EQ(read["diffusion"]["min_snr_gamma"], 0.0);
   // Keys that are there keep being checked.
   c["iterations"] = "many";
   std::ofstream(dir / "config.json") << c.dump(2);

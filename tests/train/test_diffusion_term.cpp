@@ -56,8 +56,13 @@ TEST(DiffusionTerm, OptionsComeFromLossDiffusionAndTheDiffusionSection) {
   train::set_key(config, "diffusion.schedule", "cosine");
   train::set_key(config, "diffusion.channel_multipliers", "[1, 2]");
   train::set_key(config, "diffusion.start_strength", "0.25");
+  train::set_key(config, "diffusion.prediction", "\"residual\"");
+  train::set_key(config, "diffusion.min_snr_gamma", "5");
   train::set_key(config, "seed", "9");
   auto o = train::diffusion_term_options(config, 7, "default");
+  EXPECT_EQ(o.prediction, model::Prediction::Residual);
+  EXPECT_DOUBLE_EQ(o.min_snr_gamma, 5.0);
+  EXPECT_EQ(DiffusionTerm(o, 1).denoiser().prediction, model::Prediction::Residual);
   EXPECT_TRUE(o.enabled());
   EXPECT_DOUBLE_EQ(o.weight, 0.3);
   EXPECT_EQ(o.crop_px, 24);
@@ -70,6 +75,12 @@ TEST(DiffusionTerm, OptionsComeFromLossDiffusionAndTheDiffusionSection) {
   auto bad = config;
   train::set_key(bad, "diffusion.schedule", "quadratic");
   EXPECT_NE(error_of([&] { train::diffusion_term_options(bad, 7, "preset.json"); }).find("cosine"),
+            std::string::npos);
+  bad = config;
+  train::set_key(bad, "diffusion.prediction", "\"x0\"");
+  EXPECT_NE(error_of([&] {
+              train::diffusion_term_options(bad, 7, "preset.json");
+            }).find("preset.json: diffusion: prediction must be"),
             std::string::npos);
   bad = config;
   train::set_key(bad, "diffusion.start_strength", "0");
@@ -180,8 +191,8 @@ TEST(DiffusionTerm, DenoiserFileRoundTripsAndRejectsBadFiles) {
   model::SamplerOptions sampler;
   sampler.steps = 3;
   sampler.start_strength = 0.3;
-  auto a = model::denoise_view(term.denoiser().unet, term.denoiser().schedule, render, sampler);
-  auto b = model::denoise_view(loaded.unet, loaded.schedule, render, sampler);
+  auto a = model::denoise_view(term.denoiser(), render, sampler);
+  auto b = model::denoise_view(loaded, render, sampler);
   EXPECT_TRUE(torch::equal(a, b));
 
   EXPECT_NE(error_of([&] { train::read_denoiser(dir / "missing.pt"); }).find("missing.pt"),
