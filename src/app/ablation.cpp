@@ -33,10 +33,17 @@ std::string utc_now() {
   return buf;
 }
 
+// A row without the denoiser never reads the "diffusion" section, so changing
+// the denoiser's settings (or adding keys to that section) keeps those rows.
+json training_inputs(json config) {
+  if (config.at("loss").at("diffusion").get<double>() == 0) config.erase("diffusion");
+  return config;
+}
+
 bool same_config(const train::RunPaths& paths, const json& config) {
   if (!fs::exists(paths.config())) return false;
   try {
-    return train::read_run_config(paths) == config;
+    return training_inputs(train::read_run_config(paths)) == training_inputs(config);
   } catch (const core::Error&) {
     return false;
   }

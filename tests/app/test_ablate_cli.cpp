@@ -140,6 +140,14 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
   ASSERT_EQ(second["rows"].size(), 3u);
   EXPECT_EQ(second["rows"][2]["clean"], table["rows"][7]["clean"]);
 
+  // Denoiser settings do not concern the rows without it: still reused.
+  ASSERT_EQ(ddhgs(ablate + " --rows 3dgs,sl --set diffusion.min_snr_gamma=5", &out), 0) << out;
+  for (const char* row : {"3dgs", "sl"})
+    EXPECT_NE(out.find((dir / row).string() + " is already trained with this config; reusing"),
+              std::string::npos)
+        << row << "\n"
+        << out;
+
   EXPECT_EQ(ddhgs(ablate + " --rows 3dgs,wavelet", &out), 1);
   EXPECT_NE(out.find("unknown row 'wavelet'"), std::string::npos) << out;
 }
