@@ -30,6 +30,7 @@ const Ranked& rank_gaussians(const Projected& p, const torch::Tensor& colors, co
   rank_of.assign(size_t(colors.size(0)), -1);
   for (int32_t r = 0; r < int32_t(visible); ++r) rank_of[order[r]] = r;
   const int32_t* rank = rank_of.data();
+  const SplatExtent* extents = bins.extents.data();
   at::parallel_for(0, colors.size(0), 2048, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       const int64_t r = rank[i];
@@ -42,7 +43,7 @@ const Ranked& rank_gaussians(const Projected& p, const torch::Tensor& colors, co
       s.mx = m[2 * i], s.my = m[2 * i + 1];
       s.a = con[3 * i], s.b = con[3 * i + 1], s.c = con[3 * i + 2];
       s.opacity = op[i], s.depth = dep[i];
-      set_extent(s);
+      set_extent(s, extents[i]);
       splats[r] = s;
     }
   });

@@ -47,10 +47,10 @@ inline SplatExtent splat_extent(float a, float b, float c, float opacity) {
           float(std::sqrt(2 * power * a / det) + 1), false};
 }
 
-// Fills a splat's extent and span coefficients; s.a, s.b, s.c and s.opacity
-// must be set. A splat that never reaches 1/255 gets ext_x = -1.
-inline void set_extent(Splat& s) {
-  const SplatExtent e = splat_extent(s.a, s.b, s.c, s.opacity);
+// Fills a splat's extent (e = splat_extent of its conic and opacity) and
+// span coefficients; s.a, s.b and s.c must be set. A splat that never
+// reaches 1/255 gets ext_x = -1.
+inline void set_extent(Splat& s, const SplatExtent& e) {
   if (e.empty) {
     s.skip_power = s.ext_x = s.ext_y = -1;
     s.span_k0 = s.span_k1 = s.span_k2 = 0;

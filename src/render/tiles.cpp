@@ -120,10 +120,11 @@ void bin_gaussians(const float* means2d, const float* conics, const float* opaci
                 "rasterize: image wider or taller than 65535 tiles");
   thread_local std::vector<PackedRect> rects;
   rects.resize(count);
+  bins.extents.resize(count);
   auto rect_of = [&](int32_t g) {
     const double u = means2d[2 * g], v = means2d[2 * g + 1];
     TileRect t = tile_rect(u, v, radii[g], bins.tiles_x, bins.tiles_y);
-    const SplatExtent e =
+    const SplatExtent e = bins.extents[g] =
         splat_extent(conics[3 * g], conics[3 * g + 1], conics[3 * g + 2], opacities[g]);
     if (e.empty) return PackedRect{0, 0, 0, 0};
     // Pixel x (centre x + 0.5) is within ext_x of u for x in [u - ext_x - 0.5, u + ext_x - 0.5].

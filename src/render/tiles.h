@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "render/splat_row.h"
+
 namespace ddhgs::render {
 
 constexpr int kTileSize = 16;  // pixels per tile side
@@ -47,6 +49,9 @@ struct TileBins {
   std::vector<int32_t> offsets;  // [tiles + 1] into ranks
   std::vector<int32_t> ranks;    // depth ranks, tile-major, increasing within a tile
   std::vector<std::vector<int32_t>> thread_tiles;  // [threads][...] tile indices
+  // [G] alpha >= 1/255 extent of each Gaussian, by Gaussian index; set for
+  // the visible ones only (the splat records reuse them).
+  std::vector<SplatExtent> extents;
 
   int num_tiles() const { return tiles_x * tiles_y; }
 };
