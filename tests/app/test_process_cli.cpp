@@ -131,11 +131,11 @@ TEST(ProcessCli, RecoversSyntheticPosesAndTrainsLikeTheTruePoses) {
   // error under 2 % of the scene size.
   const double max_rotation_deg = std::stod(env_or("DDHGS_PROCESS_MAX_ROTATION_DEG", "1"));
   const double max_position_pct = std::stod(env_or("DDHGS_PROCESS_MAX_POSITION_PCT", "2"));
-  // How far below the true-pose run the processed run's PSNR may be. The CI
-  // size recovers poses to about 2 degrees, which a well-trained model shows
-  // (several dB), so CI only asks that the processed scene trains to a floor;
-  // scripts/process_benchmark.sh sets the 1.5 dB at full size.
-  const double max_psnr_gap = std::stod(env_or("DDHGS_PROCESS_MAX_PSNR_GAP", "-1"));
+  // How far below the true-pose run the processed run's PSNR may be (dB).
+  // At CI size the 0.2-0.6 degree poses cost about 2 dB after 100 iterations
+  // (the 2-degree poses before domain-size pooling cost 6 dB); the issue's
+  // 1.5 dB is set by scripts/process_benchmark.sh at full size.
+  const double max_psnr_gap = std::stod(env_or("DDHGS_PROCESS_MAX_PSNR_GAP", "3"));
   const std::string train_args =
       env_or("DDHGS_PROCESS_TRAIN", "--preset demo --downscale 4 --set iterations=100");
   fs::path dir = test::temp_dir("process_cli");
@@ -186,10 +186,7 @@ TEST(ProcessCli, RecoversSyntheticPosesAndTrainsLikeTheTruePoses) {
     psnr[i] = nlohmann::json::parse(io::read_file(run / "train_summary.json"))["test_psnr"];
   }
   double train_s = seconds_since(start);
-  if (max_psnr_gap >= 0)
-    EXPECT_GT(psnr[1], psnr[0] - max_psnr_gap);
-  else
-    EXPECT_GT(psnr[1], 20.0);
+  EXPECT_GT(psnr[1], psnr[0] - max_psnr_gap);
 
   // One line for scripts/process_benchmark.sh and docs/benchmarks.md.
   char line[512];
