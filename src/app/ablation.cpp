@@ -97,6 +97,7 @@ json evaluate_row(const AblationOptions& options, const AblationRow& row,
 
   model::SamplerOptions sampler = run.sampler;
   if (options.start_strength > 0) sampler.start_strength = options.start_strength;
+  if (options.samples > 0) sampler.samples = options.samples;
   auto settings = eval::denoise_settings(options.denoise_steps, false, sampler);
   eval::DenoisedReport denoised = eval::evaluate_denoised(*run.scene, run.gaussians, run.background,
                                                           *run.denoiser, views, "test", settings);

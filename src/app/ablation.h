@@ -39,6 +39,8 @@ struct AblationOptions {
   // Sampler start strength for denoiser rows; 0: the preset's
   // diffusion.start_strength. An evaluation setting, so finished rows are reused.
   double start_strength = 0;
+  // Samples averaged per denoised view (0: the preset's diffusion.sampler_samples).
+  int64_t samples = 0;
   int fps_repeats = 3;
   bool force = false;  // retrain rows whose folder holds another configuration
 };

@@ -49,6 +49,10 @@ Action setup(CLI::App& parent) {
                   "Sampler start strength for the denoiser rows (default: the preset's "
                   "diffusion.start_strength); changing it re-evaluates without retraining")
       ->check(CLI::Range(1e-9, 1.0));
+  cmd->add_option("--samples", args->options.samples,
+                  "Denoised samples averaged per view (default: the preset's "
+                  "diffusion.sampler_samples); re-evaluates without retraining")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--fps-repeats", args->options.fps_repeats, "Timed render passes for FPS")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();

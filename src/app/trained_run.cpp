@@ -76,12 +76,18 @@ void add_sampler_flags(CLI::App* cmd, SamplerFlags& flags) {
   flags.eta_option =
       cmd->add_option("--eta", flags.eta, "DDIM eta (0: deterministic; default diffusion.eta)")
           ->check(CLI::Range(0.0, 1.0));
+  flags.samples_option =
+      cmd->add_option("--samples", flags.samples,
+                      "Average this many denoised samples (seeds seed, seed+1, ...): the "
+                      "posterior mean, which PSNR rewards (default diffusion.sampler_samples)")
+          ->check(CLI::PositiveNumber);
 }
 
 model::SamplerOptions sampler_options(const TrainedRun& run, const SamplerFlags& flags) {
   model::SamplerOptions sampler = run.sampler;
   if (flags.start_strength_option->count() > 0) sampler.start_strength = flags.start_strength;
   if (flags.eta_option->count() > 0) sampler.eta = flags.eta;
+  if (flags.samples_option->count() > 0) sampler.samples = flags.samples;
   return sampler;
 }
 

@@ -32,8 +32,10 @@ struct TrainedRun {
 // --start-strength and --eta, shared by `ddhgs eval` and `ddhgs render`.
 struct SamplerFlags {
   double start_strength = 0, eta = 0;
+  int64_t samples = 1;
   CLI::Option* start_strength_option = nullptr;
   CLI::Option* eta_option = nullptr;
+  CLI::Option* samples_option = nullptr;
 };
 void add_sampler_flags(CLI::App* cmd, SamplerFlags& flags);
 // The run's sampler defaults (TrainedRun::sampler) with the flags that were given.

@@ -32,17 +32,20 @@ std::string fixed(double value, int decimals) {
 
 std::vector<DenoiseSetting> denoise_settings(const std::vector<int64_t>& ddim_steps, bool ddpm,
                                              const model::SamplerOptions& base) {
+  // "ddim10", or "ddim10-mean8" for the mean of 8 samples.
+  const std::string mean =
+      base.samples > 1 ? "-mean" + std::to_string(base.samples) : std::string();
   std::vector<DenoiseSetting> settings;
   for (int64_t k : ddim_steps) {
     model::SamplerOptions s = base;
     s.method = model::SamplerMethod::Ddim;
     s.steps = k;
-    settings.push_back({"ddim" + std::to_string(k), s});
+    settings.push_back({"ddim" + std::to_string(k) + mean, s});
   }
   if (ddpm) {
     model::SamplerOptions s = base;
     s.method = model::SamplerMethod::Ddpm;
-    settings.push_back({"ddpm", s});
+    settings.push_back({"ddpm" + mean, s});
   }
   return settings;
 }
@@ -69,7 +72,8 @@ DenoisedReport evaluate_denoised(const io::Scene& scene, const model::Gaussians&
         model::render_gaussians(gaussians, scene.views[size_t(v)].camera, background).image;
     render_ms += ms_since(start);
     // The first sampler call pays for allocator growth and cold caches.
-    if (i == 0 && !settings.empty()) model::denoise_view(denoiser, render, settings.front().sampler);
+    if (i == 0 && !settings.empty())
+      model::denoise_view(denoiser, render, settings.front().sampler);
     torch::Tensor truth = scene.image(v), clean_truth = scene.clean_image(v);
     for (size_t s = 0; s < settings.size(); ++s) {
       DenoisedResult& result = report.results[s];
@@ -111,6 +115,7 @@ json denoised_json(const DenoisedReport& report) {
     }
     j["start_strength"] = s.start_strength;
     j["seed"] = s.seed;
+    j["samples"] = s.samples;
     if (r.mean_clean) j["clean"] = metrics_summary(*r.mean_clean);
     j["denoise_ms"] = r.denoise_ms;
     j["fps"] = report.fps(r);

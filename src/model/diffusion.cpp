@@ -208,6 +208,7 @@ void SamplerOptions::validate(int64_t schedule_steps, const std::string& where) 
   core::require(eta >= 0.0 && eta <= 1.0, where + ": eta must be in [0, 1]");
   core::require(start_strength > 0.0 && start_strength <= 1.0,
                 where + ": start strength must be in (0, 1]");
+  core::require(samples >= 1, where + ": samples must be >= 1");
 }
 
 int64_t start_step(int64_t schedule_steps, double start_strength) {
@@ -269,10 +270,15 @@ torch::Tensor ddim_sample(const NoisePredictor& predictor, const NoiseSchedule& 
 torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                      const torch::Tensor& cond, const SamplerOptions& options) {
   options.validate(schedule.steps, "sampler options");
-  if (options.method == SamplerMethod::Ddpm)
-    return ddpm_sample(predictor, schedule, cond, options.seed, options.start_strength);
-  return ddim_sample(predictor, schedule, cond, options.steps, options.eta, options.seed,
-                     options.start_strength);
+  auto one = [&](uint64_t seed) {
+    if (options.method == SamplerMethod::Ddpm)
+      return ddpm_sample(predictor, schedule, cond, seed, options.start_strength);
+    return ddim_sample(predictor, schedule, cond, options.steps, options.eta, seed,
+                       options.start_strength);
+  };
+  torch::Tensor sum = one(options.seed);
+  for (int64_t m = 1; m < options.samples; ++m) sum = sum + one(options.seed + uint64_t(m));
+  return options.samples > 1 ? sum / double(options.samples) : sum;
 }
 
 torch::Tensor denoise_view(const Denoiser& denoiser, const torch::Tensor& render,

@@ -124,6 +124,10 @@ struct SamplerOptions {
   // condition noised to step t_s = round(s T) - 1 and runs only steps <= t_s.
   double start_strength = 1.0;
   uint64_t seed = 0;
+  // The output is the mean of this many samples (seeds seed, seed + 1, ...):
+  // a Monte-Carlo estimate of the posterior mean E[x0 | render], which PSNR
+  // and RMSE reward, instead of one draw whose own noise they penalise.
+  int64_t samples = 1;
 
   // Throws core::Error naming `where` (flag or preset) on bad values.
   void validate(int64_t schedule_steps, const std::string& where) const;
@@ -154,7 +158,8 @@ void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& 
 Denoiser load_denoiser(torch::serialize::InputArchive& archive, const std::string& key,
                        const std::filesystem::path& file);
 
-// Dispatches on options.method (after validating); cond in [0, 1].
+// Dispatches on options.method (after validating) and averages
+// options.samples runs; cond in [0, 1].
 torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                      const torch::Tensor& cond,  // [B, N, H, W]
                      const SamplerOptions& options);

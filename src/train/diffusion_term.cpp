@@ -48,6 +48,7 @@ DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
   o.sampler.steps = read_key<int64_t>(d, "sampler_steps", where);
   o.sampler.start_strength = read_key<double>(d, "start_strength", where);
   o.sampler.eta = read_key<double>(d, "eta", where);
+  o.sampler.samples = read_key<int64_t>(d, "sampler_samples", where);
   o.sampler.seed = config.at("seed").get<uint64_t>();
   core::require(o.weight >= 0, where + ": loss.diffusion must be >= 0");
   core::require(o.warmup >= 0, where + ": diffusion.warmup must be >= 0");

@@ -78,6 +78,14 @@ TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
   ASSERT_EQ(ddhgs("eval " + straight.string() + " --denoise-steps 1,2 --fps-repeats 1", &out), 0);
   auto again = read_json(straight / "eval" / "denoised.json");
   EXPECT_EQ(again["settings"][1]["psnr"], denoised["settings"][1]["psnr"]);
+  ASSERT_EQ(
+      ddhgs("eval " + straight.string() + " --denoise-steps 2 --samples 3 --fps-repeats 0", &out),
+      0)
+      << out;
+  auto mean = read_json(straight / "eval" / "denoised.json")["settings"][0];
+  EXPECT_EQ(mean["name"], "ddim2-mean3");
+  EXPECT_EQ(mean["samples"], 3);
+  EXPECT_NE(mean["psnr"], denoised["settings"][1]["psnr"]);
 
   ASSERT_EQ(ddhgs("render " + straight.string() + " --denoise 2 --format npy", &out), 0) << out;
   EXPECT_FALSE(fs::is_empty(straight / "renders" / "test_ddim2"));

@@ -219,6 +219,30 @@ TEST(Samplers, SeededSamplingIsDeterministic) {
   EXPECT_TRUE(torch::equal(c, model::denoise_view(d, render, o)));
 }
 
+// samples = M is the mean of the M single runs with seeds seed .. seed + M - 1.
+TEST(Samplers, MeanOfSamplesAveragesTheSeededRuns) {
+  const model::Denoiser d{test::live_unet(test::tiny_unet_options(3), 31), model::NoiseSchedule()};
+  auto render = torch::rand({7, 5, 3});
+  model::SamplerOptions o;
+  o.steps = 3;
+  o.eta = 1.0;
+  o.start_strength = 0.3;
+  o.seed = 40;
+  torch::Tensor sum = torch::zeros_like(render);
+  for (uint64_t seed : {40, 41, 42}) {
+    o.seed = seed;
+    sum += model::denoise_view(d, render, o);
+  }
+  o.seed = 40;
+  o.samples = 3;
+  auto mean = model::denoise_view(d, render, o);
+  EXPECT_LT((mean - sum / 3).abs().max().item<double>(), 1e-6);
+  o.samples = 1;
+  EXPECT_GT((mean - model::denoise_view(d, render, o)).abs().max().item<double>(), 1e-3);
+  o.samples = 0;
+  EXPECT_THROW(model::denoise_view(d, render, o), core::Error);
+}
+
 // The residual parameterisation's point: a U-Net that has learnt nothing
 // (last layer zero, as constructed) predicts x0 = cond at every step, so
 // every sampler, from any start, ends at the render itself.
