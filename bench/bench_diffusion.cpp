@@ -23,7 +23,7 @@ void BM_UNetTrainStep(benchmark::State& state) {
   core::configure_threads();
   const int64_t bands = state.range(0), crop_px = state.range(1);
   torch::manual_seed(0);
-  const model::Denoiser denoiser{unet_of_width(bands, state.range(2)), model::NoiseSchedule()};
+  model::Denoiser denoiser{unet_of_width(bands, state.range(2)), model::NoiseSchedule()};
   auto gt = torch::rand({crop_px, crop_px, bands});
   auto render = torch::rand({crop_px, crop_px, bands}).requires_grad_(true);
   auto generator = at::make_generator<at::CPUGeneratorImpl>(1);
