@@ -58,5 +58,13 @@ if [ ! -f "$build_dir/build.ninja" ]; then
   }
   rm -f "$build_dir.cmake.log"
 fi
-ninja -C "$build_dir" -j "$(nproc)" --quiet 2>&1 | grep -v '^ninja: no work to do' || true
-test "${PIPESTATUS[0]}" = 0 || { echo "setup: build failed" >&2; exit 1; }
+# ninja's own status decides (a filter in a pipeline with `|| true` would
+# hide a failed build and leave stale binaries to be tested).
+build_log="$build_dir.build.log"
+if ! ninja -C "$build_dir" -j "$(nproc)" --quiet >"$build_log" 2>&1; then
+  cat "$build_log" >&2
+  echo "setup: build failed (log: $build_log)" >&2
+  exit 1
+fi
+grep -v '^ninja: no work to do' "$build_log" || true
+rm -f "$build_log"
