@@ -29,7 +29,7 @@ struct TrainedRun {
   model::SamplerOptions sampler;
 };
 
-// --start-strength and --eta, shared by `ddhgs eval` and `ddhgs render`.
+// --start-strength, --eta and --samples, shared by `ddhgs eval` and `ddhgs render`.
 struct SamplerFlags {
   double start_strength = 0, eta = 0;
   int64_t samples = 1;
