@@ -49,15 +49,50 @@ bool same_config(const train::RunPaths& paths, const json& config) {
   }
 }
 
+// The config without the denoiser's fine-tuning keys, which act only after
+// the Gaussian iterations.
+json without_finetuning(json config) {
+  if (config.contains("diffusion"))
+    for (const char* key : {"finetune_steps", "finetune_batch", "finetune_crop"})
+      config["diffusion"].erase(key);
+  return config;
+}
+
+// When DIR/<row> was trained with the same config up to the denoiser's
+// fine-tuning, rewinds it to its checkpoint at the end of the Gaussian
+// iterations under the new config, so only the fine-tuning runs again.
+bool rewind_to_finetuning(const train::RunPaths& paths, const json& config) {
+  if (config.at("loss").at("diffusion").get<double>() == 0 || !fs::exists(paths.config()))
+    return false;
+  const fs::path at_end = paths.checkpoint_at(config.at("iterations").get<int64_t>());
+  try {
+    if (!fs::exists(at_end) ||
+        without_finetuning(train::read_run_config(paths)) != without_finetuning(config))
+      return false;
+  } catch (const core::Error&) {
+    return false;
+  }
+  core::log_info("  " + paths.root.string() +
+                 " differs only in the denoiser's fine-tuning; continuing from " + at_end.string());
+  fs::remove(paths.summary());
+  io::write_atomically(paths.checkpoint(), [&](const fs::path& tmp) {
+    fs::copy_file(at_end, tmp, fs::copy_options::overwrite_existing);
+  });
+  io::write_file_atomically(paths.config(), config.dump(2) + "\n");
+  return true;
+}
+
 // Trains the row unless DIR/<row> already holds it finished; continues it
-// from its checkpoint when an earlier ablation was interrupted. False when
-// this training is interrupted (Ctrl-C).
+// from its checkpoint when an earlier ablation was interrupted, or from the
+// end of its Gaussian iterations when only the fine-tuning changed. False
+// when this training is interrupted (Ctrl-C).
 bool train_row(const train::RunPaths& paths, const json& config, bool force) {
-  const bool ours = same_config(paths, config);
+  bool ours = same_config(paths, config);
   if (ours && fs::exists(paths.summary()) && fs::exists(paths.gaussians())) {
     core::log_info("  " + paths.root.string() + " is already trained with this config; reusing it");
     return true;
   }
+  if (!ours) ours = rewind_to_finetuning(paths, config);
   auto trainer = ours && fs::exists(paths.checkpoint())
                      ? train::Trainer::resume(paths)
                      : train::Trainer::start(config, paths, force || ours);
@@ -78,14 +113,23 @@ json evaluate_row(const AblationOptions& options, const AblationRow& row,
   eval::write_per_view_csv(out / "per_view.csv", report);
 
   const json summary = json::parse(io::read_file(paths.summary()));
+  // The Gaussian iterations only (the denoiser's fine-tuning after them is
+  // reported apart).
+  const double iterations_per_second = summary.value("iterations_per_second", 0.0);
   const double seconds_per_iteration =
-      summary.at("seconds").get<double>() / std::max<double>(1, summary.at("iterations"));
+      iterations_per_second > 0
+          ? 1.0 / iterations_per_second
+          : summary.at("seconds").get<double>() / std::max<double>(1, summary.at("iterations"));
   json base = {{"row", row.name},
                {"spectral_loss", row.spectral_loss},
                {"wavelength_encoder", row.wavelength_encoder},
                {"diffusion", row.diffusion},
                {"seconds_per_iteration", seconds_per_iteration},
                {"gaussians", report.gaussians}};
+  if (summary.contains("denoiser_finetune_seconds")) {
+    base["denoiser_finetune_steps"] = summary.at("denoiser_finetune_steps");
+    base["denoiser_finetune_seconds"] = summary.at("denoiser_finetune_seconds");
+  }
   json entries = json::array();
   json raw = base;
   raw["output"] = "render";
@@ -233,6 +277,19 @@ std::string ablation_markdown(const json& ablation) {
        << cell(e, "clean", "sam", 4) << " | " << cell(e, "clean", "rmse", 4) << " | "
        << cell(e, "views", "psnr", 2) << " | " << cell(e, "views", "ssim", 4) << " | "
        << cell(e, "views", "sam", 4) << " | " << cell(e, "views", "rmse", 4) << " " << tail << "\n";
+  }
+  // s / iter counts the Gaussian iterations; the denoiser-only steps after
+  // them are listed here, once per row.
+  std::string last;
+  for (const json& e : ablation.at("rows")) {
+    if (!e.contains("denoiser_finetune_seconds") || e.at("row") == last) continue;
+    last = e.at("row").get<std::string>();
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  "\nRow %s: %lld denoiser fine-tuning steps after training, %.0f s.\n",
+                  last.c_str(), (long long)e.at("denoiser_finetune_steps").get<int64_t>(),
+                  e.at("denoiser_finetune_seconds").get<double>());
+    md << line;
   }
   return md.str();
 }

@@ -53,6 +53,7 @@ ProgressBar::~ProgressBar() {
 
 void ProgressBar::update(int64_t done, const std::string& status) {
   done_ = std::min(done, total_);
+  if (first_ < 0) first_ = done_;
   status_ = status;
   auto now = std::chrono::steady_clock::now();
   if (tty_) {
@@ -79,7 +80,10 @@ void ProgressBar::draw(bool final_line) {
   if (g_level < LogLevel::Normal) return;
   double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   double frac = double(done_) / double(total_);
-  double rate = elapsed > 0 ? done_ / elapsed : 0.0;
+  // Items per second since the first update, so a resumed job's rate does
+  // not count the work done before it.
+  const int64_t since = done_ - std::max<int64_t>(first_, 0);
+  double rate = elapsed > 0 ? since / elapsed : 0.0;
   std::string eta = (rate > 0 && !final_line) ? format_duration((total_ - done_) / rate) : "";
   const int width = 24;
   int filled = int(frac * width);

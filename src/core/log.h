@@ -33,6 +33,7 @@ class ProgressBar {
   std::string label_;
   int64_t total_;
   int64_t done_ = 0;
+  int64_t first_ = -1;  // position at the first update (a resumed job starts there)
   std::string status_;
   bool tty_;
   bool finished_ = false;

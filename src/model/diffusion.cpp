@@ -1,6 +1,8 @@
 #include "model/diffusion.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/error.h"
 
@@ -185,19 +187,52 @@ torch::Tensor diffusion_loss(const NoisePredictor& predictor, const NoiseSchedul
 torch::Tensor view_diffusion_loss(const Denoiser& denoiser, const torch::Tensor& gt,
                                   const torch::Tensor& render, int64_t crop_px,
                                   at::Generator& generator, double min_snr_gamma) {
-  TORCH_CHECK(gt.dim() == 3 && gt.sizes() == render.sizes(), "view_diffusion_loss: gt ", gt.sizes(),
-              " and render ", render.sizes(), " must be the same [H, W, N]");
-  const int64_t h = gt.size(0), w = gt.size(1);
-  const int64_t ch = crop_px > 0 ? std::min(crop_px, h) : h;
-  const int64_t cw = crop_px > 0 ? std::min(crop_px, w) : w;
+  return views_diffusion_loss(denoiser, {gt}, {render}, crop_px, generator, min_snr_gamma);
+}
+
+torch::Tensor views_diffusion_loss(const Denoiser& denoiser, const std::vector<torch::Tensor>& gts,
+                                   const std::vector<torch::Tensor>& renders, int64_t crop_px,
+                                   at::Generator& generator, double min_snr_gamma) {
+  return views_diffusion_loss(as_predictor(denoiser), denoiser.schedule, gts, renders, crop_px,
+                              generator, min_snr_gamma);
+}
+
+NoisePredictor identity_predictor(const NoiseSchedule& schedule) {
+  return [a = schedule.sqrt_alphas_cumprod, b = schedule.sqrt_one_minus_alphas_cumprod](
+             const torch::Tensor& x_t, const torch::Tensor& cond, const torch::Tensor& t) {
+    return (x_t - per_sample(a, t, x_t) * cond) / per_sample(b, t, x_t);
+  };
+}
+
+torch::Tensor views_diffusion_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                                   const std::vector<torch::Tensor>& gts,
+                                   const std::vector<torch::Tensor>& renders, int64_t crop_px,
+                                   at::Generator& generator, double min_snr_gamma) {
+  TORCH_CHECK(!gts.empty() && gts.size() == renders.size(),
+              "views_diffusion_loss: need as many renders as ground-truth views (at least one)");
+  // One crop size for the batch: the smallest view bounds it.
+  int64_t ch = std::numeric_limits<int64_t>::max(), cw = ch;
+  for (size_t i = 0; i < gts.size(); ++i) {
+    TORCH_CHECK(gts[i].dim() == 3 && gts[i].sizes() == renders[i].sizes(),
+                "views_diffusion_loss: gt ", gts[i].sizes(), " and render ", renders[i].sizes(),
+                " must be the same [H, W, N]");
+    const int64_t h = gts[i].size(0), w = gts[i].size(1);
+    ch = std::min(ch, crop_px > 0 ? std::min(crop_px, h) : h);
+    cw = std::min(cw, crop_px > 0 ? std::min(crop_px, w) : w);
+  }
   auto corner = [&](int64_t free) {
     return torch::randint(0, free + 1, {1}, generator, torch::kLong).item<int64_t>();
   };
-  const int64_t y0 = corner(h - ch), x0 = corner(w - cw);
-  auto crop = [&](const torch::Tensor& image) {
-    return image.slice(0, y0, y0 + ch).slice(1, x0, x0 + cw).permute({2, 0, 1}).unsqueeze(0);
-  };
-  return diffusion_loss(as_predictor(denoiser), denoiser.schedule, crop(gt), crop(render),
+  std::vector<torch::Tensor> gt_crops, render_crops;
+  for (size_t i = 0; i < gts.size(); ++i) {
+    const int64_t y0 = corner(gts[i].size(0) - ch), x0 = corner(gts[i].size(1) - cw);
+    auto crop = [&](const torch::Tensor& image) {
+      return image.slice(0, y0, y0 + ch).slice(1, x0, x0 + cw).permute({2, 0, 1});
+    };
+    gt_crops.push_back(crop(gts[i]));
+    render_crops.push_back(crop(renders[i]));
+  }
+  return diffusion_loss(predictor, schedule, torch::stack(gt_crops), torch::stack(render_crops),
                         generator, min_snr_gamma);
 }
 

@@ -114,6 +114,24 @@ torch::Tensor view_diffusion_loss(const Denoiser& denoiser,
                                   int64_t crop_px, at::Generator& generator,
                                   double min_snr_gamma = 0.0);
 
+// The same on a batch of views, one crop each (corners drawn in order, then t
+// and eps for the whole batch). The crop is bounded by the smallest view, so
+// "whole views" (crop_px <= 0) of different sizes are cropped to the smallest
+// one. With one view it is view_diffusion_loss, draw for draw.
+torch::Tensor views_diffusion_loss(const Denoiser& denoiser,
+                                   const std::vector<torch::Tensor>& gts,      // [H, W, N] each
+                                   const std::vector<torch::Tensor>& renders,  // [H, W, N] each
+                                   int64_t crop_px, at::Generator& generator,
+                                   double min_snr_gamma = 0.0);
+torch::Tensor views_diffusion_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                                   const std::vector<torch::Tensor>& gts,
+                                   const std::vector<torch::Tensor>& renders, int64_t crop_px,
+                                   at::Generator& generator, double min_snr_gamma = 0.0);
+
+// The noise implied by x0 = cond exactly: what a residual denoiser with a zero
+// correction predicts. Its loss is the bar a trained denoiser must beat.
+NoisePredictor identity_predictor(const NoiseSchedule& schedule);
+
 enum class SamplerMethod { Ddpm, Ddim };
 
 struct SamplerOptions {

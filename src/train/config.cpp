@@ -162,7 +162,9 @@ namespace {
 // a run gets the value that reproduces it. (The denoiser predicted eps with an
 // unweighted loss before the residual parameterisation became the default.)
 const json& legacy_values() {
-  static const json values = {{"diffusion.prediction", "eps"}, {"diffusion.min_snr_gamma", 0.0}};
+  static const json values = {{"diffusion.prediction", "eps"},
+                              {"diffusion.min_snr_gamma", 0.0},
+                              {"diffusion.finetune_steps", 0}};
   return values;
 }
 

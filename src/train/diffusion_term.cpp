@@ -2,6 +2,8 @@
 
 #include <ATen/CPUGeneratorImpl.h>
 
+#include <cmath>
+
 #include "core/error.h"
 #include "io/atomic_file.h"
 
@@ -38,6 +40,9 @@ DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
   o.prediction =
       model::parse_prediction(read_key<std::string>(d, "prediction", where), where + ": diffusion");
   o.min_snr_gamma = read_key<double>(d, "min_snr_gamma", where);
+  o.finetune_steps = read_key<int64_t>(d, "finetune_steps", where);
+  o.finetune_batch = read_key<int64_t>(d, "finetune_batch", where);
+  o.finetune_crop = read_key<int64_t>(d, "finetune_crop", where);
   o.unet = model::unet_options_from_json(d, where + ": diffusion");
   o.unet.bands = bands;
   o.schedule_steps = read_key<int64_t>(d, "steps", where);
@@ -54,6 +59,8 @@ DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
   core::require(o.warmup >= 0, where + ": diffusion.warmup must be >= 0");
   core::require(o.lr > 0, where + ": diffusion.lr must be > 0");
   core::require(o.condition_noise >= 0, where + ": diffusion.condition_noise must be >= 0");
+  core::require(o.finetune_steps >= 0, where + ": diffusion.finetune_steps must be >= 0");
+  core::require(o.finetune_batch >= 1, where + ": diffusion.finetune_batch must be >= 1");
   core::require(o.schedule_steps >= 1, where + ": diffusion.steps must be >= 1");
   o.sampler.validate(o.schedule_steps, where + ": diffusion");
   return o;
@@ -85,6 +92,55 @@ torch::Tensor diffusion_term_loss(model::Denoiser& denoiser, const DiffusionTerm
     cond = cond + options.condition_noise * torch::randn(cond.sizes(), generator, cond.options());
   return model::view_diffusion_loss(denoiser, target.to(render.dtype()), cond, options.crop_px,
                                     generator, options.min_snr_gamma);
+}
+
+namespace {
+
+torch::Tensor finetune_batch_loss(const model::NoisePredictor& predictor,
+                                  const model::NoiseSchedule& schedule,
+                                  const DiffusionTermOptions& options,
+                                  const std::vector<torch::Tensor>& renders,
+                                  const std::vector<torch::Tensor>& targets, uint64_t seed) {
+  TORCH_CHECK(!renders.empty() && renders.size() == targets.size(),
+              "finetune_loss: need as many renders as targets (at least one)");
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
+  auto picks =
+      torch::randint(0, int64_t(renders.size()), {options.finetune_batch}, generator, torch::kLong);
+  std::vector<torch::Tensor> conds, gts;
+  for (int64_t b = 0; b < options.finetune_batch; ++b) {
+    const size_t v = size_t(picks[b].item<int64_t>());
+    torch::Tensor cond = renders[v].detach();
+    if (options.condition_noise > 0)
+      cond = cond + options.condition_noise * torch::randn(cond.sizes(), generator, cond.options());
+    conds.push_back(cond);
+    gts.push_back(targets[v].to(cond.dtype()));
+  }
+  return model::views_diffusion_loss(predictor, schedule, gts, conds, options.finetune_crop,
+                                     generator, options.min_snr_gamma);
+}
+
+}  // namespace
+
+torch::Tensor finetune_loss(model::Denoiser& denoiser, const DiffusionTermOptions& options,
+                            const std::vector<torch::Tensor>& renders,
+                            const std::vector<torch::Tensor>& targets, uint64_t seed) {
+  return finetune_batch_loss(model::as_predictor(denoiser), denoiser.schedule, options, renders,
+                             targets, seed);
+}
+
+torch::Tensor finetune_identity_loss(const model::Denoiser& denoiser,
+                                     const DiffusionTermOptions& options,
+                                     const std::vector<torch::Tensor>& renders,
+                                     const std::vector<torch::Tensor>& targets, uint64_t seed) {
+  torch::NoGradGuard no_grad;
+  return finetune_batch_loss(model::identity_predictor(denoiser.schedule), denoiser.schedule,
+                             options, renders, targets, seed);
+}
+
+double finetune_lr(double lr, int64_t k, int64_t steps) {
+  constexpr double kPi = 3.14159265358979323846;
+  if (steps <= 0) return lr;
+  return lr * 0.5 * (1.0 + std::cos(kPi * double(k) / double(steps)));
 }
 
 fs::path denoiser_path(const RunPaths& run) {

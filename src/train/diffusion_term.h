@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "model/diffusion.h"
 #include "train/losses.h"
@@ -34,6 +35,13 @@ struct DiffusionTermOptions {
   // the loss weighting (<= 0: unweighted, the paper).
   model::Prediction prediction = model::Prediction::Eps;
   double min_snr_gamma = 0;
+  // Steps of denoiser-only training after the joint iterations (Gaussians
+  // frozen, conditions cached), finetune_batch crops of finetune_crop px each
+  // (<= 0: whole views, the size the denoiser runs at), learning rate
+  // cosine-annealed from lr to 0. See finetune_loss.
+  int64_t finetune_steps = 0;
+  int64_t finetune_batch = 2;
+  int64_t finetune_crop = 0;
   model::UNetOptions unet;  // bands set from the data
   int64_t schedule_steps = 1000;
   model::BetaSchedule schedule = model::BetaSchedule::Linear;
@@ -76,6 +84,28 @@ torch::Tensor diffusion_term_loss(model::Denoiser& denoiser, const DiffusionTerm
                                   const torch::Tensor& render,  // [H, W, N]
                                   const torch::Tensor& target,  // [H, W, N]
                                   uint64_t seed);
+
+// One step of the denoiser's fine-tuning: the diffusion loss (as in the joint
+// term, condition noise included) on a batch of options.finetune_batch crops
+// of options.finetune_crop px, from training views drawn with replacement. renders[i] is the frozen
+// Gaussians' render of the view whose captured image is targets[i]. Only the
+// U-Net receives gradients (renders are used as they are, detached).
+// The same draws with model::identity_predictor instead of the U-Net
+// (no graph): the loss of returning the render as it is, for comparison.
+torch::Tensor finetune_loss(model::Denoiser& denoiser, const DiffusionTermOptions& options,
+                            const std::vector<torch::Tensor>& renders,  // [H, W, N] each
+                            const std::vector<torch::Tensor>& targets,  // [H, W, N] each
+                            uint64_t seed);
+torch::Tensor finetune_identity_loss(const model::Denoiser& denoiser,
+                                     const DiffusionTermOptions& options,
+                                     const std::vector<torch::Tensor>& renders,
+                                     const std::vector<torch::Tensor>& targets, uint64_t seed);
+
+// The fine-tuning learning rate at step k in [0, steps): lr (1 + cos(pi k /
+// steps)) / 2, from lr at the first step towards 0 at the last. Averaging
+// out the parameter noise of Adam at a constant rate is what the fine-tuning
+// is for (a constant rate leaves the correction with a per-image bias).
+double finetune_lr(double lr, int64_t k, int64_t steps);
 
 // RUN/denoiser.pt, beside gaussians.ply.
 std::filesystem::path denoiser_path(const RunPaths& run);

@@ -185,6 +185,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
 
 std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations) {
   json config = read_run_config(run);
+  const int64_t trained = config.at("iterations").get<int64_t>();
   if (iterations > 0) config["iterations"] = iterations;
   std::unique_ptr<Trainer> t(new Trainer(config, run));
   t->load_scene();
@@ -195,6 +196,21 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
     throw core::Error(run.checkpoint(), "has " + std::to_string(t->state_.gaussians.bands()) +
                                             " bands but the dataset loads " +
                                             std::to_string(t->scene_->bands()));
+  if (iterations > 0 && t->state_.iteration > trained) {
+    // Past the Gaussian iterations (the denoiser was being fine-tuned): go
+    // back to their end; the fine-tuning runs again after the new total.
+    const fs::path at_end = run.checkpoint_at(trained);
+    if (!fs::exists(at_end))
+      throw core::Error(run.checkpoint(), "is past the Gaussian iterations and " +
+                                              at_end.filename().string() +
+                                              " is missing; resume without --iterations");
+    core::log_info("continuing from the end of the Gaussian iterations (" + at_end.string() +
+                   "); the denoiser is fine-tuned again afterwards");
+    auto modules = t->state_.modules;
+    t->state_ = TrainState();
+    t->state_.modules = modules;
+    load_checkpoint(at_end, t->state_, options);
+  }
   if (iterations > 0) io::write_file_atomically(run.config(), config.dump(2) + "\n");
   core::log_info("resuming " + run.root.string() + " at iteration " +
                  std::to_string(t->state_.iteration));
@@ -261,6 +277,52 @@ void Trainer::step(int64_t iteration, json& record) {
   record["densify_removed"] = state_.meta["densify_removed"];
 }
 
+int64_t Trainer::total_steps() const {
+  const int64_t iterations = config_.at("iterations").get<int64_t>();
+  return iterations + (diffusion_ ? diffusion_->options().finetune_steps : 0);
+}
+
+void Trainer::finetune_step(int64_t iteration, json& record) {
+  const int64_t iterations = config_.at("iterations").get<int64_t>();
+  const DiffusionTermOptions& options = diffusion_->options();
+  if (finetune_renders_.empty()) {
+    torch::NoGradGuard no_grad;
+    const torch::Tensor offsets = band_offsets();
+    core::log_info("denoiser fine-tuning: rendering the " + std::to_string(scene_->train.size()) +
+                   " training views once (Gaussians frozen from here on)");
+    for (int v : scene_->train) {
+      finetune_renders_.push_back(
+          model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_, offsets)
+              .image);
+      finetune_targets_.push_back(scene_->image(v));
+    }
+  }
+  const double lr = finetune_lr(options.lr, iteration - iterations - 1, options.finetune_steps);
+  for (auto& group : state_.adam.groups())
+    if (group.name.rfind("denoiser/", 0) == 0) group.lr = lr;
+  const uint64_t seed =
+      mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration));
+  const torch::Tensor loss =
+      finetune_loss(diffusion_->denoiser(), options, finetune_renders_, finetune_targets_, seed);
+  const torch::Tensor identity = finetune_identity_loss(diffusion_->denoiser(), options,
+                                                        finetune_renders_, finetune_targets_, seed);
+  loss.backward();
+  state_.adam.step();
+  state_.adam.zero_grad();
+  auto average = [](double& avg, double value) {
+    avg = avg < 0 ? value : 0.99 * avg + 0.01 * value;
+  };
+  average(finetune_loss_avg_, loss.item<double>());
+  average(finetune_identity_avg_, identity.item<double>());
+  record = {{"iter", iteration},
+            {"phase", "denoiser"},
+            {"diffusion", loss.item<double>()},
+            {"diffusion_identity", identity.item<double>()},
+            {"diffusion_avg", finetune_loss_avg_},
+            {"diffusion_identity_avg", finetune_identity_avg_},
+            {"denoiser_lr", lr}};
+}
+
 void Trainer::save(bool numbered) {
   save_checkpoint(run_.checkpoint(), state_);
   if (numbered) {
@@ -306,10 +368,13 @@ void Trainer::write_outputs(double seconds) {
                          model::to_ply(state_.gaussians, scene_->wavelengths_nm, offsets));
   const int64_t iterations = config_.at("iterations").get<int64_t>();
   const int degree = state_.gaussians.max_sh_degree();
+  // Time of the Gaussian iterations alone (the denoiser's fine-tuning after
+  // them is reported apart); older checkpoints did not record it.
+  const double gaussian_seconds = state_.meta.value("gaussian_seconds", seconds);
   json summary = {
       {"iterations", iterations},
       {"seconds", seconds},
-      {"iterations_per_second", seconds > 0 ? double(iterations) / seconds : 0.0},
+      {"iterations_per_second", gaussian_seconds > 0 ? double(iterations) / gaussian_seconds : 0.0},
       {"num_gaussians", state_.gaussians.size()},
       {"bands", scene_->bands()},
       {"sh_degree", degree},
@@ -321,6 +386,10 @@ void Trainer::write_outputs(double seconds) {
     // How far the encoder moved the SH coefficients, to judge its effect.
     summary["wavelength_offsets_abs_max"] = offsets.abs().max().item<double>();
     summary["wavelength_offsets_rms"] = offsets.pow(2).mean().sqrt().item<double>();
+  }
+  if (diffusion_ && diffusion_->options().finetune_steps > 0) {
+    summary["denoiser_finetune_steps"] = diffusion_->options().finetune_steps;
+    summary["denoiser_finetune_seconds"] = seconds - gaussian_seconds;
   }
   summary.update(test_psnr());
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
@@ -336,7 +405,8 @@ void Trainer::write_outputs(double seconds) {
 }
 
 TrainStatus Trainer::run() {
-  const int64_t total = config_.at("iterations").get<int64_t>();
+  const int64_t iterations = config_.at("iterations").get<int64_t>();
+  const int64_t total = total_steps();
   const json& output = config_.at("output");
   const int64_t log_every = output.at("log_every").get<int64_t>();
   const int64_t checkpoint_every = output.at("checkpoint_every").get<int64_t>();
@@ -349,6 +419,10 @@ TrainStatus Trainer::run() {
     return seconds_before +
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
+  // A run resumed at the end of its Gaussian iterations by a version that
+  // did not record their time.
+  if (state_.iteration >= iterations && !state_.meta.contains("gaussian_seconds"))
+    state_.meta["gaussian_seconds"] = seconds_before;
   core::ProgressBar bar("train", total);
   bar.update(state_.iteration);
   json record;
@@ -363,18 +437,32 @@ TrainStatus Trainer::run() {
       return TrainStatus::Interrupted;
     }
     const int64_t iteration = state_.iteration + 1;
-    step(iteration, record);
+    const bool finetuning = iteration > iterations;
+    if (finetuning)
+      finetune_step(iteration, record);
+    else
+      step(iteration, record);
     state_.iteration = iteration;
-    if (every(iteration, log_every) || iteration == total || iteration == 1) {
+    // The Gaussians' share of the time, for seconds per iteration.
+    if (iteration == iterations) state_.meta["gaussian_seconds"] = elapsed();
+    if (every(iteration, log_every) || iteration == total || iteration == 1 ||
+        iteration == iterations + 1) {
       record["seconds"] = elapsed();
       metrics.write(record);
     }
     char status[160];
-    std::snprintf(status, sizeof status, "loss %.4f  psnr %.2f dB  G %lld",
-                  record["loss"].get<double>(), record["train_psnr"].get<double>(),
-                  (long long)record["num_gaussians"].get<int64_t>());
+    if (finetuning)
+      std::snprintf(status, sizeof status, "denoiser fine-tuning  loss %.4f (render as is %.4f)",
+                    record["diffusion_avg"].get<double>(),
+                    record["diffusion_identity_avg"].get<double>());
+    else
+      std::snprintf(status, sizeof status, "loss %.4f  psnr %.2f dB  G %lld",
+                    record["loss"].get<double>(), record["train_psnr"].get<double>(),
+                    (long long)record["num_gaussians"].get<int64_t>());
     bar.update(iteration, status);
-    if (every(iteration, checkpoint_every) && iteration < total) {
+    // The end of the Gaussian iterations is always kept when the fine-tuning
+    // follows: resuming with more iterations starts again from there.
+    if ((every(iteration, checkpoint_every) || iteration == iterations) && iteration < total) {
       state_.meta["seconds"] = elapsed();
       save(true);
     }

@@ -63,6 +63,11 @@ class Trainer {
   void set_learning_rates(int64_t iteration);
   int view_for(int64_t iteration) const;
   void step(int64_t iteration, nlohmann::json& record);
+  // Gaussian iterations plus the denoiser's fine-tuning steps, if any.
+  int64_t total_steps() const;
+  // One denoiser-only step after the joint iterations (DiffusionTermOptions::
+  // finetune_steps); renders the training views once, on the first call.
+  void finetune_step(int64_t iteration, nlohmann::json& record);
   void save(bool numbered);
   void write_outputs(double seconds);
   // Mean PSNR (dB) of the held-out views, against noisy and clean ground truth.
@@ -78,6 +83,12 @@ class Trainer {
   model::WavelengthEncoder encoder_{nullptr};
   std::unique_ptr<DiffusionTerm> diffusion_;  // loss.diffusion > 0
   torch::Tensor wavelengths01_;               // [N] the encoder's input
+  // The frozen Gaussians' renders of the training views and their captured
+  // images, for the fine-tuning (built on its first step).
+  std::vector<torch::Tensor> finetune_renders_, finetune_targets_;
+  // Moving averages (over ~100 steps) of the fine-tuning loss and of the
+  // loss of returning the render unchanged, for metrics.jsonl; < 0 unset.
+  double finetune_loss_avg_ = -1, finetune_identity_avg_ = -1;
   // Holds background_ as a trained parameter when model.learn_background is on.
   std::shared_ptr<torch::nn::Module> background_module_;
   bool replacing_ = false;

@@ -15,11 +15,12 @@ namespace ddhgs {
 namespace {
 namespace fs = std::filesystem;
 
-// A small U-Net and a short warm-up, so the term trains within 60 iterations.
+// A small U-Net and a short warm-up, so the term trains within 60 iterations;
+// 20 denoiser fine-tuning steps follow the Gaussian iterations.
 const std::string kDiffusion =
     " --preset demo --set diffusion.warmup=20 --set diffusion.base_channels=8"
     " --set diffusion.channel_multipliers=[1,2] --set diffusion.crop=16"
-    " --set diffusion.sampler_steps=2 --checkpoint-every 30";
+    " --set diffusion.sampler_steps=2 --set diffusion.finetune_steps=20 --checkpoint-every 10";
 
 const fs::path& scene() {
   static const fs::path dir = [] {
@@ -53,17 +54,54 @@ TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
   ASSERT_TRUE(fs::exists(straight / "denoiser.pt"));
   std::ifstream metrics(straight / "metrics.jsonl");
   double last_diffusion = -1;
+  int finetune_records = 0;
   for (std::string line; std::getline(metrics, line);) {
     auto record = nlohmann::json::parse(line);
-    if (record["iter"].get<int>() > 20) last_diffusion = record.value("diffusion", -1.0);
+    const int iter = record["iter"].get<int>();
+    if (iter > 20 && iter <= 60) last_diffusion = record.value("diffusion", -1.0);
+    if (iter > 60) {
+      EXPECT_EQ(record["phase"], "denoiser") << line;
+      EXPECT_GT(record["diffusion_identity"].get<double>(), 0.0) << line;
+      ++finetune_records;
+    }
   }
   EXPECT_GT(last_diffusion, 0.0);
+  EXPECT_GE(finetune_records, 2);
+  auto summary = read_json(straight / "train_summary.json");
+  EXPECT_EQ(summary["iterations"], 60);
+  EXPECT_EQ(summary["denoiser_finetune_steps"], 20);
+  EXPECT_GT(summary["denoiser_finetune_seconds"].get<double>(), 0.0);
 
-  // Interrupted at 30 (after the warm-up) and resumed: the same Gaussians and U-Net.
+  // The Gaussians are frozen while the denoiser is fine-tuned: the export
+  // equals the one rendered from the checkpoint at the end of iteration 60.
+  const fs::path at_60 = runs / "at_60";
+  fs::copy(straight, at_60, fs::copy_options::recursive);
+  fs::copy_file(at_60 / "checkpoints" / "ckpt_60.pt", at_60 / "checkpoint.pt",
+                fs::copy_options::overwrite_existing);
+  auto config = read_json(at_60 / "config.json");
+  config["diffusion"]["finetune_steps"] = 0;
+  io::write_file_atomically(at_60 / "config.json", config.dump(2));
+  ASSERT_EQ(ddhgs("train --resume " + at_60.string(), &out), 0) << out;
+  EXPECT_EQ(io::read_file(at_60 / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
+  EXPECT_NE(io::read_file(at_60 / "denoiser.pt"), io::read_file(straight / "denoiser.pt"));
+
+  // Trained to 30 (and fine-tuned), then continued to 60: back to the end of
+  // iteration 30, then the same Gaussians and U-Net as straight through.
   ASSERT_EQ(ddhgs(train + " --iterations 30 --out " + split.string(), &out), 0) << out;
   ASSERT_EQ(ddhgs("train --resume " + split.string() + " --iterations 60", &out), 0) << out;
+  EXPECT_NE(out.find("continuing from the end of the Gaussian iterations"), std::string::npos)
+      << out;
   EXPECT_EQ(io::read_file(split / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
   EXPECT_EQ(io::read_file(split / "denoiser.pt"), io::read_file(straight / "denoiser.pt"));
+
+  // Interrupted in the middle of the fine-tuning (checkpoint 70) and resumed.
+  const fs::path mid = runs / "mid";
+  fs::copy(straight, mid, fs::copy_options::recursive);
+  fs::copy_file(mid / "checkpoints" / "ckpt_70.pt", mid / "checkpoint.pt",
+                fs::copy_options::overwrite_existing);
+  fs::remove(mid / "denoiser.pt");
+  ASSERT_EQ(ddhgs("train --resume " + mid.string(), &out), 0) << out;
+  EXPECT_EQ(io::read_file(mid / "denoiser.pt"), io::read_file(straight / "denoiser.pt"));
 
   ASSERT_EQ(ddhgs("eval " + straight.string() + " --denoise-steps 1,2 --fps-repeats 1", &out), 0)
       << out;
@@ -105,7 +143,8 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
       "ablate " + scene().string() + " --out " + dir.string() +
       " --preset demo --set iterations=40 --set diffusion.warmup=20"
       " --set diffusion.base_channels=8 --set diffusion.channel_multipliers=[1,2]"
-      " --set diffusion.crop=16 --denoise-steps 2 --fps-repeats 1";
+      " --set diffusion.crop=16 --set diffusion.finetune_steps=10 --denoise-steps 2"
+      " --fps-repeats 1";
   std::string out;
   ASSERT_EQ(ddhgs(ablate, &out), 0) << out;
   auto table = read_json(dir / "ablation.json");
@@ -155,6 +194,16 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
               std::string::npos)
         << row << "\n"
         << out;
+
+  // Only the fine-tuning changed: the full row continues from the end of its
+  // Gaussian iterations, so its raw render is unchanged and its denoiser is not.
+  const std::string full_denoiser = io::read_file(dir / "full" / "denoiser.pt");
+  ASSERT_EQ(ddhgs(ablate + " --rows full --set diffusion.finetune_steps=15", &out), 0) << out;
+  EXPECT_NE(out.find("differs only in the denoiser's fine-tuning"), std::string::npos) << out;
+  auto refined = read_json(dir / "ablation.json");
+  EXPECT_EQ(refined["rows"][0]["clean"], table["rows"][6]["clean"]);
+  EXPECT_NE(io::read_file(dir / "full" / "denoiser.pt"), full_denoiser);
+  EXPECT_EQ(read_json(dir / "full" / "train_summary.json")["denoiser_finetune_steps"], 15);
 
   EXPECT_EQ(ddhgs(ablate + " --rows 3dgs,wavelet", &out), 1);
   EXPECT_NE(out.find("unknown row 'wavelet'"), std::string::npos) << out;

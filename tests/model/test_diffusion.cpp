@@ -379,6 +379,50 @@ TEST(DiffusionLoss, ViewLossCropsBothImagesAtOneWindowAndReachesTheRender) {
   EXPECT_EQ((render.grad().abs().sum(2) > 0).sum().item<int64_t>(), 20 * 17);
 }
 
+TEST(DiffusionLoss, BatchOfViewsIsTheMeanOfItsPerViewLossesAndOneViewIsTheViewLoss) {
+  const model::Denoiser d{test::live_unet(test::tiny_unet_options(3), 21), model::NoiseSchedule()};
+  auto gt = torch::rand({20, 17, 3}), render = torch::rand({20, 17, 3});
+  auto g1 = at::make_generator<at::CPUGeneratorImpl>(5);
+  auto g2 = at::make_generator<at::CPUGeneratorImpl>(5);
+  EXPECT_TRUE(torch::equal(model::view_diffusion_loss(d, gt, render, 8, g1, 5.0),
+                           model::views_diffusion_loss(d, {gt}, {render}, 8, g2, 5.0)));
+
+  // Whole views of different sizes: both cropped to the smallest (12 x 17)
+  // and stacked into one predictor call.
+  auto small = torch::rand({12, 19, 3}), small_render = torch::rand({12, 19, 3});
+  std::vector<torch::Tensor> crops;
+  model::NoisePredictor recording = [&](const torch::Tensor& x_t, const torch::Tensor& cond,
+                                        const torch::Tensor& t) {
+    crops.push_back(cond);
+    return model::as_predictor(d)(x_t, cond, t);
+  };
+  auto g3 = at::make_generator<at::CPUGeneratorImpl>(6);
+  auto batch = model::views_diffusion_loss(recording, d.schedule, {gt, small},
+                                           {render, small_render}, 0, g3);
+  ASSERT_EQ(crops.size(), 1u);
+  EXPECT_EQ(crops[0].sizes(), (std::vector<int64_t>{2, 3, 12, 17}));
+  EXPECT_TRUE(std::isfinite(batch.item<double>()));
+}
+
+TEST(DiffusionLoss, IdentityPredictorIsAnUntrainedResidualDenoiser) {
+  // The residual U-Net's last layer starts at zero: x0 = cond, which is what
+  // identity_predictor assumes, draw for draw.
+  const model::Denoiser d{model::UNet(test::tiny_unet_options(3)), model::NoiseSchedule(),
+                          model::Prediction::Residual};
+  auto gt = torch::rand({16, 12, 3}), render = torch::rand({16, 12, 3});
+  auto g1 = at::make_generator<at::CPUGeneratorImpl>(8);
+  auto g2 = at::make_generator<at::CPUGeneratorImpl>(8);
+  const double unet =
+      model::views_diffusion_loss(d, {gt, gt}, {render, render}, 8, g1, 5.0).item<double>();
+  const double identity =
+      model::views_diffusion_loss(model::identity_predictor(d.schedule), d.schedule, {gt, gt},
+                                  {render, render}, 8, g2, 5.0)
+          .item<double>();
+  EXPECT_NEAR(unet, identity, 1e-6 * identity);
+  // And it is not trivially zero: the render differs from the target.
+  EXPECT_GT(identity, 1e-3);
+}
+
 TEST(Denoiser, CheckpointKeepsTheScheduleWithTheNetwork) {
   model::Denoiser denoiser{test::live_unet(test::tiny_unet_options(2), 18),
                            model::NoiseSchedule(500, model::BetaSchedule::Cosine),

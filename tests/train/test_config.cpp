@@ -135,12 +135,16 @@ TEST(Config, OlderRunConfigsTakeDefaultsForKeysAddedLater) {
   // the unweighted loss it was trained with, whatever today's defaults say.
   c["diffusion"].erase("prediction");
   c["diffusion"].erase("min_snr_gamma");
+  c["diffusion"].erase("finetune_steps");
   c["iterations"] = 1234;
   std::ofstream(dir / "config.json") << c.dump(2);
   read = train::read_run_config({dir});
   EXPECT_EQ(train::load_preset("default")["diffusion"]["prediction"], "residual");
   EXPECT_EQ(read["diffusion"]["prediction"], "eps");
   EXPECT_EQ(read["diffusion"]["min_snr_gamma"], 0.0);
+  // ... and ends where it ended, without the later fine-tuning phase.
+  EXPECT_GT(train::load_preset("default")["diffusion"]["finetune_steps"], 0);
+  EXPECT_EQ(read["diffusion"]["finetune_steps"], 0);
   // Keys that are there keep being checked.
   c["iterations"] = "many";
   std::ofstream(dir / "config.json") << c.dump(2);

@@ -3,6 +3,7 @@
 // the denoiser file.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 
 #include "core/error.h"
@@ -176,6 +177,65 @@ TEST(DiffusionTerm, ConditionNoiseChangesTheTermDeterministically) {
   auto noisy_again = train::diffusion_term_loss(term.denoiser(), options, render, target, 5);
   EXPECT_NE(plain.item<double>(), noisy.item<double>());
   EXPECT_EQ(noisy.item<double>(), noisy_again.item<double>());
+}
+
+TEST(DiffusionFinetune, OptionsAndLearningRateSchedule) {
+  auto config = train::load_preset("default");
+  train::set_key(config, "loss.diffusion", "0.3");
+  train::set_key(config, "diffusion.finetune_steps", "250");
+  train::set_key(config, "diffusion.finetune_batch", "3");
+  train::set_key(config, "diffusion.finetune_crop", "32");
+  auto o = train::diffusion_term_options(config, 4, "default");
+  EXPECT_EQ(o.finetune_steps, 250);
+  EXPECT_EQ(o.finetune_batch, 3);
+  EXPECT_EQ(o.finetune_crop, 32);
+  train::set_key(config, "diffusion.finetune_batch", "0");
+  EXPECT_NE(error_of([&] {
+              train::diffusion_term_options(config, 4, "preset.json");
+            }).find("preset.json: diffusion.finetune_batch must be >= 1"),
+            std::string::npos);
+
+  // Cosine from lr to 0: lr (1 + cos(pi k / K)) / 2.
+  EXPECT_DOUBLE_EQ(train::finetune_lr(4e-4, 0, 100), 4e-4);
+  EXPECT_NEAR(train::finetune_lr(4e-4, 50, 100), 2e-4, 1e-15);
+  EXPECT_NEAR(train::finetune_lr(4e-4, 25, 100), 2e-4 * (1 + std::sqrt(0.5)), 1e-15);
+  EXPECT_NEAR(train::finetune_lr(4e-4, 99, 100), 2e-4 * (1 - std::cos(3.14159265358979 / 100)),
+              1e-15);
+}
+
+TEST(DiffusionFinetune, LossTrainsOnlyTheUNetAndTheIdentityLossIsItsUntrainedValue) {
+  auto o = tiny_options(3, 8);
+  o.prediction = model::Prediction::Residual;
+  o.min_snr_gamma = 5;
+  o.finetune_batch = 3;
+  o.finetune_crop = 6;
+  DiffusionTerm term(o, 30);
+  std::vector<torch::Tensor> renders, targets;
+  for (uint64_t v = 0; v < 4; ++v) {
+    renders.push_back(random_view(40 + v, 10, 9, 3).requires_grad_(true));
+    targets.push_back(random_view(50 + v, 10, 9, 3));
+  }
+  // Untrained (zero last layer): the U-Net's loss is the render-as-is loss.
+  const double untrained =
+      train::finetune_loss(term.denoiser(), o, renders, targets, 7).item<double>();
+  const double identity =
+      train::finetune_identity_loss(term.denoiser(), o, renders, targets, 7).item<double>();
+  EXPECT_NEAR(untrained, identity, 1e-6 * identity);
+  EXPECT_NE(identity,
+            train::finetune_identity_loss(term.denoiser(), o, renders, targets, 8).item<double>());
+
+  randomise_last_layer(term.denoiser().unet, 31);
+  auto loss = train::finetune_loss(term.denoiser(), o, renders, targets, 7);
+  EXPECT_NE(loss.item<double>(), identity);
+  loss.backward();
+  for (const auto& r : renders) EXPECT_FALSE(r.grad().defined());
+  double unet_grad = 0;
+  for (const auto& p : term.denoiser().unet->parameters())
+    if (p.grad().defined()) unet_grad += p.grad().abs().sum().item<double>();
+  EXPECT_GT(unet_grad, 0.0);
+  // Seeded: the same seed gives the same loss.
+  EXPECT_EQ(train::finetune_loss(term.denoiser(), o, renders, targets, 7).item<double>(),
+            loss.item<double>());
 }
 
 TEST(DiffusionTerm, DenoiserFileRoundTripsAndRejectsBadFiles) {
