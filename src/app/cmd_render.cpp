@@ -93,7 +93,11 @@ Action setup(CLI::App& parent) {
       options.transform = [&run, sampler](const torch::Tensor& image) {
         return model::denoise_view(*run.denoiser, image, sampler);
       };
-      folder += args->ddpm ? "_ddpm" : "_ddim" + std::to_string(sampler.steps);
+      // The setting's name, as eval reports it: "_ddim10", "_ddim10-mean4", "_ddpm".
+      const auto setting = eval::denoise_settings(
+          args->ddpm ? std::vector<int64_t>{} : std::vector<int64_t>{sampler.steps}, args->ddpm,
+          sampler);
+      folder += "_" + setting.front().name;
     }
     options.out_dir = args->out.empty() ? run.root / "renders" / folder : fs::path(args->out);
 

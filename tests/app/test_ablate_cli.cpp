@@ -141,6 +141,10 @@ TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
 
   ASSERT_EQ(ddhgs("render " + straight.string() + " --denoise 2 --format npy", &out), 0) << out;
   EXPECT_FALSE(fs::is_empty(straight / "renders" / "test_ddim2"));
+  // The mean of several samples goes to its own folder, named as eval names it.
+  ASSERT_EQ(ddhgs("render " + straight.string() + " --denoise 2 --samples 2 --format npy", &out), 0)
+      << out;
+  EXPECT_FALSE(fs::is_empty(straight / "renders" / "test_ddim2-mean2"));
 
   ASSERT_EQ(
       ddhgs(train + " --iterations 30 --out " + plain.string() + " --set loss.diffusion=0", &out),
