@@ -43,7 +43,6 @@ DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
   o.finetune_steps = read_key<int64_t>(d, "finetune_steps", where);
   o.finetune_batch = read_key<int64_t>(d, "finetune_batch", where);
   o.finetune_crop = read_key<int64_t>(d, "finetune_crop", where);
-  o.holdout_every = read_key<int64_t>(d, "holdout_every", where);
   o.unet = model::unet_options_from_json(d, where + ": diffusion");
   o.unet.bands = bands;
   o.schedule_steps = read_key<int64_t>(d, "steps", where);
@@ -61,12 +60,6 @@ DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
   core::require(o.lr > 0, where + ": diffusion.lr must be > 0");
   core::require(o.condition_noise >= 0, where + ": diffusion.condition_noise must be >= 0");
   core::require(o.finetune_steps >= 0, where + ": diffusion.finetune_steps must be >= 0");
-  core::require(o.holdout_every == 0 || o.holdout_every >= 2,
-                where + ": diffusion.holdout_every must be 0 (off) or >= 2");
-  core::require(o.holdout_every == 0 || o.finetune_steps > 0,
-                where +
-                    ": diffusion.holdout_every needs diffusion.finetune_steps > 0 (the "
-                    "held-out views are used only there)");
   core::require(o.finetune_batch >= 1, where + ": diffusion.finetune_batch must be >= 1");
   core::require(o.schedule_steps >= 1, where + ": diffusion.steps must be >= 1");
   o.sampler.validate(o.schedule_steps, where + ": diffusion");
@@ -99,23 +92,6 @@ torch::Tensor diffusion_term_loss(model::Denoiser& denoiser, const DiffusionTerm
     cond = cond + options.condition_noise * torch::randn(cond.sizes(), generator, cond.options());
   return model::view_diffusion_loss(denoiser, target.to(render.dtype()), cond, options.crop_px,
                                     generator, options.min_snr_gamma);
-}
-
-std::pair<std::vector<int>, std::vector<int>> split_holdout(const std::vector<int>& train_views,
-                                                            int64_t holdout_every) {
-  std::pair<std::vector<int>, std::vector<int>> split;
-  for (size_t i = 0; i < train_views.size(); ++i) {
-    const bool held = holdout_every > 0 && int64_t(i) % holdout_every == holdout_every - 1;
-    (held ? split.second : split.first).push_back(train_views[i]);
-  }
-  if (holdout_every > 0) {
-    core::require(!split.second.empty(),
-                  "diffusion.holdout_every = " + std::to_string(holdout_every) +
-                      " holds out none of " + std::to_string(train_views.size()) +
-                      " training views");
-    core::require(!split.first.empty(), "diffusion.holdout_every leaves no training view");
-  }
-  return split;
 }
 
 namespace {

@@ -13,7 +13,6 @@
 #include <filesystem>
 #include <memory>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "model/diffusion.h"
@@ -43,12 +42,6 @@ struct DiffusionTermOptions {
   int64_t finetune_steps = 0;
   int64_t finetune_batch = 2;
   int64_t finetune_crop = 0;
-  // k >= 2: every k-th training view (positions k-1, 2k-1, ... of the
-  // training list) is kept from the Gaussians and the joint term, and the
-  // fine-tuning trains on those views only. Their renders then carry the
-  // errors of views the Gaussians never saw, as held-out views do, instead
-  // of the near-perfect fit of training views. 0: off.
-  int64_t holdout_every = 0;
   model::UNetOptions unet;  // bands set from the data
   int64_t schedule_steps = 1000;
   model::BetaSchedule schedule = model::BetaSchedule::Linear;
@@ -91,13 +84,6 @@ torch::Tensor diffusion_term_loss(model::Denoiser& denoiser, const DiffusionTerm
                                   const torch::Tensor& render,  // [H, W, N]
                                   const torch::Tensor& target,  // [H, W, N]
                                   uint64_t seed);
-
-// The training views split by DiffusionTermOptions::holdout_every: first those
-// the Gaussians train on, then those held out for the denoiser (empty when
-// holdout_every is 0). Throws core::Error when nothing would be held out or
-// nothing would be left.
-std::pair<std::vector<int>, std::vector<int>> split_holdout(const std::vector<int>& train_views,
-                                                            int64_t holdout_every);
 
 // One step of the denoiser's fine-tuning: the diffusion loss (as in the joint
 // term, condition noise included) on a batch of options.finetune_batch crops

@@ -5,7 +5,6 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
-#include <tuple>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -122,12 +121,6 @@ void Trainer::build_modules() {
     add_module("denoiser", diffusion_->denoiser().unet.ptr(), diffusion.lr);
     losses_.push_back(diffusion_->loss_term());
   }
-  std::tie(gaussian_views_, holdout_views_) =
-      split_holdout(scene_->train, diffusion.enabled() ? diffusion.holdout_every : 0);
-  if (!holdout_views_.empty())
-    core::log_info("keeping " + std::to_string(holdout_views_.size()) + " of " +
-                   std::to_string(scene_->train.size()) +
-                   " training views out of the Gaussians' training, for the denoiser");
 }
 
 void Trainer::add_module(const std::string& name, std::shared_ptr<torch::nn::Module> module,
@@ -185,8 +178,8 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   create_run_folder(run, config, force);
   core::log_info("training " + std::to_string(t->state_.gaussians.size()) + " Gaussians x " +
                  std::to_string(t->scene_->bands()) + " bands on " +
-                 std::to_string(t->gaussian_views_.size()) + " views (" +
-                 std::to_string(t->scene_->test.size()) + " test views held out)");
+                 std::to_string(t->scene_->train.size()) + " views (" +
+                 std::to_string(t->scene_->test.size()) + " held out)");
   return t;
 }
 
@@ -226,12 +219,12 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
 
 int Trainer::view_for(int64_t iteration) const {
   // A fresh permutation of the training views every epoch, seeded by epoch.
-  const int64_t n = int64_t(gaussian_views_.size());
+  const int64_t n = int64_t(scene_->train.size());
   const int64_t epoch = (iteration - 1) / n, position = (iteration - 1) % n;
   auto generator = at::make_generator<at::CPUGeneratorImpl>(
       mix_seed(config_.at("seed").get<uint64_t>(), uint64_t(2 * epoch + 1)));
   auto order = torch::randperm(n, generator, torch::kInt64);
-  return gaussian_views_[size_t(order[position].item<int64_t>())];
+  return scene_->train[size_t(order[position].item<int64_t>())];
 }
 
 void Trainer::step(int64_t iteration, json& record) {
@@ -295,11 +288,9 @@ void Trainer::finetune_step(int64_t iteration, json& record) {
   if (finetune_renders_.empty()) {
     torch::NoGradGuard no_grad;
     const torch::Tensor offsets = band_offsets();
-    const std::vector<int>& views = holdout_views_.empty() ? scene_->train : holdout_views_;
-    core::log_info("denoiser fine-tuning: rendering the " + std::to_string(views.size()) +
-                   (holdout_views_.empty() ? "" : " held-out") +
+    core::log_info("denoiser fine-tuning: rendering the " + std::to_string(scene_->train.size()) +
                    " training views once (Gaussians frozen from here on)");
-    for (int v : views) {
+    for (int v : scene_->train) {
       finetune_renders_.push_back(
           model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_, offsets)
               .image);
@@ -399,11 +390,6 @@ void Trainer::write_outputs(double seconds) {
   if (diffusion_ && diffusion_->options().finetune_steps > 0) {
     summary["denoiser_finetune_steps"] = diffusion_->options().finetune_steps;
     summary["denoiser_finetune_seconds"] = seconds - gaussian_seconds;
-    if (!holdout_views_.empty()) {
-      json names = json::array();
-      for (int v : holdout_views_) names.push_back(scene_->views[v].name);
-      summary["denoiser_holdout_views"] = names;
-    }
   }
   summary.update(test_psnr());
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());

@@ -82,9 +82,6 @@ class Trainer {
   double extent_ = 1;
   model::WavelengthEncoder encoder_{nullptr};
   std::unique_ptr<DiffusionTerm> diffusion_;  // loss.diffusion > 0
-  // The training views the Gaussians train on, and those held out for the
-  // denoiser's fine-tuning (diffusion.holdout_every; else empty).
-  std::vector<int> gaussian_views_, holdout_views_;
   torch::Tensor wavelengths01_;               // [N] the encoder's input
   // The frozen Gaussians' renders of the training views and their captured
   // images, for the fine-tuning (built on its first step).

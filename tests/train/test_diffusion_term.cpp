@@ -203,34 +203,6 @@ TEST(DiffusionFinetune, OptionsAndLearningRateSchedule) {
               1e-15);
 }
 
-TEST(DiffusionFinetune, HoldoutTakesEveryKthTrainingView) {
-  const std::vector<int> train = {0, 2, 3, 5, 6, 8, 9};
-  auto [kept, held] = train::split_holdout(train, 3);
-  EXPECT_EQ(kept, (std::vector<int>{0, 2, 5, 6, 9}));
-  EXPECT_EQ(held, (std::vector<int>{3, 8}));
-  std::tie(kept, held) = train::split_holdout(train, 0);
-  EXPECT_EQ(kept, train);
-  EXPECT_TRUE(held.empty());
-  EXPECT_NE(error_of([&] {
-              train::split_holdout({4, 7}, 3);
-            }).find("holds out none of 2"),
-            std::string::npos);
-
-  auto config = train::load_preset("default");
-  train::set_key(config, "loss.diffusion", "0.3");
-  train::set_key(config, "diffusion.holdout_every", "1");
-  EXPECT_NE(error_of([&] {
-              train::diffusion_term_options(config, 4, "p.json");
-            }).find("p.json: diffusion.holdout_every must be 0 (off) or >= 2"),
-            std::string::npos);
-  train::set_key(config, "diffusion.holdout_every", "4");
-  train::set_key(config, "diffusion.finetune_steps", "0");
-  EXPECT_NE(error_of([&] {
-              train::diffusion_term_options(config, 4, "p.json");
-            }).find("needs diffusion.finetune_steps > 0"),
-            std::string::npos);
-}
-
 TEST(DiffusionFinetune, LossTrainsOnlyTheUNetAndTheIdentityLossIsItsUntrainedValue) {
   auto o = tiny_options(3, 8);
   o.prediction = model::Prediction::Residual;
