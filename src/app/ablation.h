@@ -33,9 +33,9 @@ struct AblationOptions {
   std::string preset = "ablation";
   std::vector<std::string> assignments;  // --set key=value, before the row switches
   std::vector<AblationRow> rows;
-  double spectral_weight = 0.1;               // loss.spectral of rows with SL (paper w3)
-  double diffusion_weight = 0.3;              // loss.diffusion of rows with the denoiser (paper w4)
-  std::vector<int64_t> denoise_steps = {10};  // DDIM K evaluated for denoiser rows
+  double spectral_weight = 0.1;   // loss.spectral of rows with SL (paper w3)
+  double diffusion_weight = 0.3;  // loss.diffusion of rows with the denoiser (paper w4)
+  std::vector<int64_t> denoise_steps = {1, 10};  // DDIM K evaluated for denoiser rows
   // Sampler start strength for denoiser rows; 0: the preset's
   // diffusion.start_strength. An evaluation setting, so finished rows are reused.
   double start_strength = 0;

@@ -19,7 +19,8 @@ struct EvalArgs {
   std::string split = "test";
   int fps_repeats = 5;
   std::string data;
-  std::vector<int64_t> denoise_steps = {10, 25};
+  // One step from s = 0.1 measured best on our scenes (docs/benchmarks.md).
+  std::vector<int64_t> denoise_steps = {1, 10};
   bool ddpm = false, no_denoise = false;
   SamplerFlags sampler;
 };

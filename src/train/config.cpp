@@ -160,11 +160,13 @@ namespace {
 
 // Keys whose default is not what runs made before the key existed did: such
 // a run gets the value that reproduces it. (The denoiser predicted eps with an
-// unweighted loss before the residual parameterisation became the default.)
+// unweighted loss before the residual parameterisation became the default,
+// had no fine-tuning phase, and its output was one sample, not a mean.)
 const json& legacy_values() {
   static const json values = {{"diffusion.prediction", "eps"},
                               {"diffusion.min_snr_gamma", 0.0},
-                              {"diffusion.finetune_steps", 0}};
+                              {"diffusion.finetune_steps", 0},
+                              {"diffusion.sampler_samples", 1}};
   return values;
 }
 

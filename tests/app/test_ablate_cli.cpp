@@ -20,7 +20,8 @@ namespace fs = std::filesystem;
 const std::string kDiffusion =
     " --preset demo --set diffusion.warmup=20 --set diffusion.base_channels=8"
     " --set diffusion.channel_multipliers=[1,2] --set diffusion.crop=16"
-    " --set diffusion.sampler_steps=2 --set diffusion.finetune_steps=20 --checkpoint-every 10";
+    " --set diffusion.sampler_steps=2 --set diffusion.sampler_samples=1"
+    " --set diffusion.finetune_steps=20 --checkpoint-every 10";
 
 const fs::path& scene() {
   static const fs::path dir = [] {
@@ -165,9 +166,9 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
   EXPECT_EQ(rows, (std::vector<std::string>{"3dgs", "sl", "we", "we+sl", "diffusion", "diffusion",
                                             "full", "full"}));
   EXPECT_EQ(outputs[4], "render");
-  EXPECT_EQ(outputs[5], "ddim2");
+  EXPECT_EQ(outputs[5], "ddim2-mean4");  // the default: the mean of 4 samples
   const std::string md = io::read_file(dir / "ablation.md");
-  for (const char* line : {"| 3dgs | render |", "| we+sl | render |", "| full | ddim2, s="})
+  for (const char* line : {"| 3dgs | render |", "| we+sl | render |", "| full | ddim2-mean4, s="})
     EXPECT_NE(md.find(line), std::string::npos) << line << "\n" << md;
 
   // Each row switches exactly its components on.

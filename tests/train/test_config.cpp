@@ -136,6 +136,7 @@ TEST(Config, OlderRunConfigsTakeDefaultsForKeysAddedLater) {
   c["diffusion"].erase("prediction");
   c["diffusion"].erase("min_snr_gamma");
   c["diffusion"].erase("finetune_steps");
+  c["diffusion"].erase("sampler_samples");
   c["iterations"] = 1234;
   std::ofstream(dir / "config.json") << c.dump(2);
   read = train::read_run_config({dir});
@@ -145,6 +146,7 @@ TEST(Config, OlderRunConfigsTakeDefaultsForKeysAddedLater) {
   // ... and ends where it ended, without the later fine-tuning phase.
   EXPECT_GT(train::load_preset("default")["diffusion"]["finetune_steps"], 0);
   EXPECT_EQ(read["diffusion"]["finetune_steps"], 0);
+  EXPECT_EQ(read["diffusion"]["sampler_samples"], 1);
   // Keys that are there keep being checked.
   c["iterations"] = "many";
   std::ofstream(dir / "config.json") << c.dump(2);
