@@ -34,9 +34,15 @@ std::string utc_now() {
 }
 
 // A row without the denoiser never reads the "diffusion" section, so changing
-// the denoiser's settings (or adding keys to that section) keeps those rows.
+// the denoiser's settings (or adding keys to that section) keeps those rows;
+// the sampler's keys only matter at evaluation, which uses the ablation's.
 json training_inputs(json config) {
-  if (config.at("loss").at("diffusion").get<double>() == 0) config.erase("diffusion");
+  if (config.at("loss").at("diffusion").get<double>() == 0) {
+    config.erase("diffusion");
+  } else {
+    for (const char* key : {"sampler_steps", "start_strength", "eta", "sampler_samples"})
+      config["diffusion"].erase(key);
+  }
   return config;
 }
 
@@ -66,8 +72,8 @@ bool rewind_to_finetuning(const train::RunPaths& paths, const json& config) {
     return false;
   const fs::path at_end = paths.checkpoint_at(config.at("iterations").get<int64_t>());
   try {
-    if (!fs::exists(at_end) ||
-        without_finetuning(train::read_run_config(paths)) != without_finetuning(config))
+    if (!fs::exists(at_end) || training_inputs(without_finetuning(train::read_run_config(paths))) !=
+                                   training_inputs(without_finetuning(config)))
       return false;
   } catch (const core::Error&) {
     return false;
@@ -90,6 +96,10 @@ bool train_row(const train::RunPaths& paths, const json& config, bool force) {
   bool ours = same_config(paths, config);
   if (ours && fs::exists(paths.summary()) && fs::exists(paths.gaussians())) {
     core::log_info("  " + paths.root.string() + " is already trained with this config; reusing it");
+    // Keys that do not change training (the sampler's) take the new values,
+    // so `ddhgs eval` on the row later agrees with the table.
+    if (train::read_run_config(paths) != config)
+      io::write_file_atomically(paths.config(), config.dump(2) + "\n");
     return true;
   }
   if (!ours) ours = rewind_to_finetuning(paths, config);

@@ -200,6 +200,14 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
         << row << "\n"
         << out;
 
+  // Sampler keys only change the evaluation: the full row is reused, evaluated
+  // with the new value, and its config says so for later `ddhgs eval` runs.
+  ASSERT_EQ(ddhgs(ablate + " --rows full --set diffusion.sampler_samples=2", &out), 0) << out;
+  EXPECT_NE(out.find("full is already trained with this config; reusing"), std::string::npos)
+      << out;
+  EXPECT_EQ(read_json(dir / "ablation.json")["rows"][1]["output"], "ddim2-mean2");
+  EXPECT_EQ(config("full")["diffusion"]["sampler_samples"], 2);
+
   // Only the fine-tuning changed: the full row continues from the end of its
   // Gaussian iterations, so its raw render is unchanged and its denoiser is not.
   const std::string full_denoiser = io::read_file(dir / "full" / "denoiser.pt");
