@@ -1,6 +1,10 @@
 // The training loop of N-band Gaussian splatting (issue 4): one training view
 // per iteration, weighted losses, fused Adam, adaptive density control,
 // metrics, checkpoints and bit-for-bit resume. Files: train/run_folder.h.
+// With the denoiser on, `iterations` joint steps are followed by
+// diffusion.finetune_steps steps that train the U-Net alone on cached renders
+// of the training views (Gaussians frozen); the iteration counter runs on
+// through them, and the checkpoint at the end of the joint steps is kept.
 #pragma once
 #include <nlohmann/json.hpp>
 
