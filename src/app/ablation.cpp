@@ -59,7 +59,8 @@ bool same_config(const train::RunPaths& paths, const json& config) {
 // the Gaussian iterations.
 json without_finetuning(json config) {
   if (config.contains("diffusion"))
-    for (const char* key : {"finetune_steps", "finetune_batch", "finetune_crop"})
+    for (const char* key :
+         {"finetune_steps", "finetune_batch", "finetune_crop", "finetune_cache_mb"})
       config["diffusion"].erase(key);
   return config;
 }

@@ -43,6 +43,7 @@ DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
   o.finetune_steps = read_key<int64_t>(d, "finetune_steps", where);
   o.finetune_batch = read_key<int64_t>(d, "finetune_batch", where);
   o.finetune_crop = read_key<int64_t>(d, "finetune_crop", where);
+  o.finetune_cache_mb = read_key<int64_t>(d, "finetune_cache_mb", where);
   o.unet = model::unet_options_from_json(d, where + ": diffusion");
   o.unet.bands = bands;
   o.schedule_steps = read_key<int64_t>(d, "steps", where);
@@ -61,6 +62,7 @@ DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
   core::require(o.condition_noise >= 0, where + ": diffusion.condition_noise must be >= 0");
   core::require(o.finetune_steps >= 0, where + ": diffusion.finetune_steps must be >= 0");
   core::require(o.finetune_batch >= 1, where + ": diffusion.finetune_batch must be >= 1");
+  core::require(o.finetune_cache_mb >= 0, where + ": diffusion.finetune_cache_mb must be >= 0");
   core::require(o.schedule_steps >= 1, where + ": diffusion.steps must be >= 1");
   o.sampler.validate(o.schedule_steps, where + ": diffusion");
   return o;
@@ -94,47 +96,30 @@ torch::Tensor diffusion_term_loss(model::Denoiser& denoiser, const DiffusionTerm
                                     generator, options.min_snr_gamma);
 }
 
-namespace {
-
-torch::Tensor finetune_batch_loss(const model::NoisePredictor& predictor,
-                                  const model::NoiseSchedule& schedule,
-                                  const DiffusionTermOptions& options,
-                                  const std::vector<torch::Tensor>& renders,
-                                  const std::vector<torch::Tensor>& targets, uint64_t seed) {
-  TORCH_CHECK(!renders.empty() && renders.size() == targets.size(),
-              "finetune_loss: need as many renders as targets (at least one)");
+FinetuneLosses finetune_losses(model::Denoiser& denoiser, const DiffusionTermOptions& options,
+                               size_t views, const FinetuneView& view, uint64_t seed) {
+  TORCH_CHECK(views > 0, "finetune_losses: no views to draw from");
   auto generator = at::make_generator<at::CPUGeneratorImpl>(seed);
-  auto picks =
-      torch::randint(0, int64_t(renders.size()), {options.finetune_batch}, generator, torch::kLong);
+  auto picks = torch::randint(0, int64_t(views), {options.finetune_batch}, generator, torch::kLong);
   std::vector<torch::Tensor> conds, gts;
   for (int64_t b = 0; b < options.finetune_batch; ++b) {
-    const size_t v = size_t(picks[b].item<int64_t>());
-    torch::Tensor cond = renders[v].detach();
+    auto [render, target] = view(size_t(picks[b].item<int64_t>()));
+    torch::Tensor cond = render.detach();
     if (options.condition_noise > 0)
       cond = cond + options.condition_noise * torch::randn(cond.sizes(), generator, cond.options());
     conds.push_back(cond);
-    gts.push_back(targets[v].to(cond.dtype()));
+    gts.push_back(target.to(cond.dtype()));
   }
-  return model::views_diffusion_loss(predictor, schedule, gts, conds, options.finetune_crop,
-                                     generator, options.min_snr_gamma);
-}
-
-}  // namespace
-
-torch::Tensor finetune_loss(model::Denoiser& denoiser, const DiffusionTermOptions& options,
-                            const std::vector<torch::Tensor>& renders,
-                            const std::vector<torch::Tensor>& targets, uint64_t seed) {
-  return finetune_batch_loss(model::as_predictor(denoiser), denoiser.schedule, options, renders,
-                             targets, seed);
-}
-
-torch::Tensor finetune_identity_loss(const model::Denoiser& denoiser,
-                                     const DiffusionTermOptions& options,
-                                     const std::vector<torch::Tensor>& renders,
-                                     const std::vector<torch::Tensor>& targets, uint64_t seed) {
+  // Both losses see the same crops, t and eps.
+  at::Generator same = generator.clone();
+  FinetuneLosses out;
+  out.loss = model::views_diffusion_loss(denoiser, gts, conds, options.finetune_crop, generator,
+                                         options.min_snr_gamma);
   torch::NoGradGuard no_grad;
-  return finetune_batch_loss(model::identity_predictor(denoiser.schedule), denoiser.schedule,
-                             options, renders, targets, seed);
+  out.identity =
+      model::views_diffusion_loss(model::identity_predictor(denoiser.schedule), denoiser.schedule,
+                                  gts, conds, options.finetune_crop, same, options.min_snr_gamma);
+  return out;
 }
 
 double finetune_lr(double lr, int64_t k, int64_t steps) {

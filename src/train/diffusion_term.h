@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -42,6 +43,10 @@ struct DiffusionTermOptions {
   int64_t finetune_steps = 0;
   int64_t finetune_batch = 2;
   int64_t finetune_crop = 0;
+  // Memory for the training views' renders, kept for the fine-tuning when
+  // they fit (at 640x512 and 141 bands one render is 185 MB); otherwise each
+  // step renders the views it draws (same result, slower).
+  int64_t finetune_cache_mb = 1024;
   model::UNetOptions unet;  // bands set from the data
   int64_t schedule_steps = 1000;
   model::BetaSchedule schedule = model::BetaSchedule::Linear;
@@ -85,21 +90,23 @@ torch::Tensor diffusion_term_loss(model::Denoiser& denoiser, const DiffusionTerm
                                   const torch::Tensor& target,  // [H, W, N]
                                   uint64_t seed);
 
+// The i-th view the fine-tuning draws from: the frozen Gaussians' render and
+// the captured image, [H, W, N] each.
+using FinetuneView = std::function<std::pair<torch::Tensor, torch::Tensor>(size_t i)>;
+
+struct FinetuneLosses {
+  torch::Tensor loss;      // the U-Net's, with a graph to its parameters only
+  torch::Tensor identity;  // returning the render as it is (no graph)
+};
+
 // One step of the denoiser's fine-tuning: the diffusion loss (as in the joint
 // term, condition noise included) on a batch of options.finetune_batch crops
-// of options.finetune_crop px, from training views drawn with replacement. renders[i] is the frozen
-// Gaussians' render of the view whose captured image is targets[i]. Only the
-// U-Net receives gradients (renders are used as they are, detached).
-// The same draws with model::identity_predictor instead of the U-Net
-// (no graph): the loss of returning the render as it is, for comparison.
-torch::Tensor finetune_loss(model::Denoiser& denoiser, const DiffusionTermOptions& options,
-                            const std::vector<torch::Tensor>& renders,  // [H, W, N] each
-                            const std::vector<torch::Tensor>& targets,  // [H, W, N] each
-                            uint64_t seed);
-torch::Tensor finetune_identity_loss(const model::Denoiser& denoiser,
-                                     const DiffusionTermOptions& options,
-                                     const std::vector<torch::Tensor>& renders,
-                                     const std::vector<torch::Tensor>& targets, uint64_t seed);
+// of options.finetune_crop px, from `views` views drawn with replacement
+// (each fetched once), and with the same draws the loss of
+// model::identity_predictor, for comparison. Only the U-Net receives
+// gradients: renders are detached.
+FinetuneLosses finetune_losses(model::Denoiser& denoiser, const DiffusionTermOptions& options,
+                               size_t views, const FinetuneView& view, uint64_t seed);
 
 // The fine-tuning learning rate at step k in [0, steps): lr (1 + cos(pi k /
 // steps)) / 2, from lr at the first step towards 0 at the last. Averaging

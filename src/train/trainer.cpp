@@ -285,27 +285,42 @@ int64_t Trainer::total_steps() const {
 void Trainer::finetune_step(int64_t iteration, json& record) {
   const int64_t iterations = config_.at("iterations").get<int64_t>();
   const DiffusionTermOptions& options = diffusion_->options();
-  if (finetune_renders_.empty()) {
+  auto render = [&](int v) {
     torch::NoGradGuard no_grad;
-    const torch::Tensor offsets = band_offsets();
-    core::log_info("denoiser fine-tuning: rendering the " + std::to_string(scene_->train.size()) +
-                   " training views once (Gaussians frozen from here on)");
+    return model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_,
+                                   band_offsets())
+        .image;
+  };
+  if (!finetune_cache_checked_) {
+    finetune_cache_checked_ = true;
+    double bytes = 0;
     for (int v : scene_->train) {
-      finetune_renders_.push_back(
-          model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_, offsets)
-              .image);
-      finetune_targets_.push_back(scene_->image(v));
+      const auto& in = scene_->views[v].camera.intrinsics;
+      bytes += double(in.width) * double(in.height) * double(scene_->bands()) * sizeof(float);
     }
+    const bool cache = bytes <= double(options.finetune_cache_mb) * 1024.0 * 1024.0;
+    core::log_info("denoiser fine-tuning (Gaussians frozen from here on): " +
+                   std::string(cache ? "rendering the training views once"
+                                     : "the training views' renders exceed the cache budget, "
+                                       "rendering them as they are drawn"));
+    if (cache)
+      for (int v : scene_->train) finetune_renders_.push_back(render(v));
   }
   const double lr = finetune_lr(options.lr, iteration - iterations - 1, options.finetune_steps);
   for (auto& group : state_.adam.groups())
     if (group.name.rfind("denoiser/", 0) == 0) group.lr = lr;
   const uint64_t seed =
       mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration));
-  const torch::Tensor loss =
-      finetune_loss(diffusion_->denoiser(), options, finetune_renders_, finetune_targets_, seed);
-  const torch::Tensor identity = finetune_identity_loss(diffusion_->denoiser(), options,
-                                                        finetune_renders_, finetune_targets_, seed);
+  const FinetuneLosses losses = finetune_losses(
+      diffusion_->denoiser(), options, scene_->train.size(),
+      [&](size_t i) {
+        const int v = scene_->train[i];
+        return std::make_pair(finetune_renders_.empty() ? render(v) : finetune_renders_[i],
+                              scene_->image(v));
+      },
+      seed);
+  const torch::Tensor& loss = losses.loss;
+  const torch::Tensor& identity = losses.identity;
   loss.backward();
   state_.adam.step();
   state_.adam.zero_grad();

@@ -87,9 +87,11 @@ class Trainer {
   model::WavelengthEncoder encoder_{nullptr};
   std::unique_ptr<DiffusionTerm> diffusion_;  // loss.diffusion > 0
   torch::Tensor wavelengths01_;               // [N] the encoder's input
-  // The frozen Gaussians' renders of the training views and their captured
-  // images, for the fine-tuning (built on its first step).
-  std::vector<torch::Tensor> finetune_renders_, finetune_targets_;
+  // The frozen Gaussians' renders of the training views for the fine-tuning,
+  // made on its first step when they fit diffusion.finetune_cache_mb; otherwise each
+  // step renders the views it draws.
+  std::vector<torch::Tensor> finetune_renders_;
+  bool finetune_cache_checked_ = false;
   // Moving averages (over ~100 steps) of the fine-tuning loss and of the
   // loss of returning the render unchanged, for metrics.jsonl; < 0 unset.
   double finetune_loss_avg_ = -1, finetune_identity_avg_ = -1;

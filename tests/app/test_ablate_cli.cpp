@@ -95,6 +95,17 @@ TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
   EXPECT_EQ(io::read_file(split / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
   EXPECT_EQ(io::read_file(split / "denoiser.pt"), io::read_file(straight / "denoiser.pt"));
 
+  // Without room to cache the renders, each step renders the views it draws:
+  // the same U-Net.
+  const fs::path uncached = runs / "uncached";
+  ASSERT_EQ(ddhgs(train + " --iterations 60 --set diffusion.finetune_cache_mb=0 --out " +
+                      uncached.string(),
+                  &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("rendering them as they are drawn"), std::string::npos) << out;
+  EXPECT_EQ(io::read_file(uncached / "denoiser.pt"), io::read_file(straight / "denoiser.pt"));
+
   // Interrupted in the middle of the fine-tuning (checkpoint 70) and resumed.
   const fs::path mid = runs / "mid";
   fs::copy(straight, mid, fs::copy_options::recursive);

@@ -215,27 +215,35 @@ TEST(DiffusionFinetune, LossTrainsOnlyTheUNetAndTheIdentityLossIsItsUntrainedVal
     renders.push_back(random_view(40 + v, 10, 9, 3).requires_grad_(true));
     targets.push_back(random_view(50 + v, 10, 9, 3));
   }
+  int fetched = 0;
+  train::FinetuneView view = [&](size_t i) {
+    ++fetched;
+    return std::make_pair(renders[i], targets[i]);
+  };
   // Untrained (zero last layer): the U-Net's loss is the render-as-is loss.
-  const double untrained =
-      train::finetune_loss(term.denoiser(), o, renders, targets, 7).item<double>();
-  const double identity =
-      train::finetune_identity_loss(term.denoiser(), o, renders, targets, 7).item<double>();
-  EXPECT_NEAR(untrained, identity, 1e-6 * identity);
-  EXPECT_NE(identity,
-            train::finetune_identity_loss(term.denoiser(), o, renders, targets, 8).item<double>());
+  auto untrained = train::finetune_losses(term.denoiser(), o, renders.size(), view, 7);
+  EXPECT_EQ(fetched, 3);  // each drawn view fetched once for both losses
+  EXPECT_NEAR(untrained.loss.item<double>(), untrained.identity.item<double>(),
+              1e-6 * untrained.identity.item<double>());
+  EXPECT_FALSE(untrained.identity.requires_grad());
+  const double identity = untrained.identity.item<double>();
+  EXPECT_NE(
+      identity,
+      train::finetune_losses(term.denoiser(), o, renders.size(), view, 8).identity.item<double>());
 
   randomise_last_layer(term.denoiser().unet, 31);
-  auto loss = train::finetune_loss(term.denoiser(), o, renders, targets, 7);
-  EXPECT_NE(loss.item<double>(), identity);
-  loss.backward();
+  auto trained = train::finetune_losses(term.denoiser(), o, renders.size(), view, 7);
+  EXPECT_NE(trained.loss.item<double>(), identity);
+  EXPECT_EQ(trained.identity.item<double>(), identity);  // independent of the U-Net
+  trained.loss.backward();
   for (const auto& r : renders) EXPECT_FALSE(r.grad().defined());
   double unet_grad = 0;
   for (const auto& p : term.denoiser().unet->parameters())
     if (p.grad().defined()) unet_grad += p.grad().abs().sum().item<double>();
   EXPECT_GT(unet_grad, 0.0);
   // Seeded: the same seed gives the same loss.
-  EXPECT_EQ(train::finetune_loss(term.denoiser(), o, renders, targets, 7).item<double>(),
-            loss.item<double>());
+  EXPECT_EQ(train::finetune_losses(term.denoiser(), o, renders.size(), view, 7).loss.item<double>(),
+            trained.loss.item<double>());
 }
 
 TEST(DiffusionTerm, DenoiserFileRoundTripsAndRejectsBadFiles) {
