@@ -49,6 +49,14 @@ torch::Tensor per_sample(const torch::Tensor& table, const torch::Tensor& t,
   return table.to(like.device()).index_select(0, t).to(like.dtype()).reshape({-1, 1, 1, 1});
 }
 
+// The noise that makes x_t from x0 at each sample's step t:
+// (x_t - sqrt(abar_t) x0) / sqrt(1 - abar_t); a and b are the schedule's
+// sqrt_alphas_cumprod and sqrt_one_minus_alphas_cumprod.
+torch::Tensor eps_from_x0(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& x_t,
+                          const torch::Tensor& x0, const torch::Tensor& t) {
+  return (x_t - per_sample(a, t, x_t) * x0) / per_sample(b, t, x_t);
+}
+
 torch::Tensor full_step(int64_t batch, int64_t t) {
   return torch::full({batch}, t, torch::kLong);
 }
@@ -162,8 +170,7 @@ NoisePredictor as_predictor(const Denoiser& denoiser) {
   const NoiseSchedule& schedule = denoiser.schedule;
   return [unet, a = schedule.sqrt_alphas_cumprod, b = schedule.sqrt_one_minus_alphas_cumprod](
              const torch::Tensor& x_t, const torch::Tensor& cond, const torch::Tensor& t) mutable {
-    auto x0 = cond + unet->forward(x_t, cond, t);
-    return (x_t - per_sample(a, t, x_t) * x0) / per_sample(b, t, x_t);
+    return eps_from_x0(a, b, x_t, cond + unet->forward(x_t, cond, t), t);
   };
 }
 
@@ -200,7 +207,7 @@ torch::Tensor views_diffusion_loss(const Denoiser& denoiser, const std::vector<t
 NoisePredictor identity_predictor(const NoiseSchedule& schedule) {
   return [a = schedule.sqrt_alphas_cumprod, b = schedule.sqrt_one_minus_alphas_cumprod](
              const torch::Tensor& x_t, const torch::Tensor& cond, const torch::Tensor& t) {
-    return (x_t - per_sample(a, t, x_t) * cond) / per_sample(b, t, x_t);
+    return eps_from_x0(a, b, x_t, cond, t);
   };
 }
 

@@ -31,7 +31,8 @@ nlohmann::json load_preset(const std::string& name_or_path);
 // values: keys introduced after an older run was made. Every new component
 // defaults to off, and keys whose default changes what existing components do
 // get the value that reproduces the older run (diffusion.prediction "eps",
-// diffusion.min_snr_gamma 0), so the older run keeps its behaviour. Returns
+// diffusion.min_snr_gamma 0, diffusion.finetune_steps 0,
+// diffusion.sampler_samples 1), so the older run keeps its behaviour. Returns
 // the dotted names of the keys added.
 std::vector<std::string> add_missing_keys(nlohmann::json& config);
 
