@@ -13,6 +13,8 @@
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
 #include "io/atomic_file.h"
+#include "io/files/folder_lock.h"
+#include "io/files/output_folder.h"
 #include "train/config.h"
 #include "train/trainer.h"
 
@@ -119,9 +121,12 @@ json evaluate_row(const AblationOptions& options, const AblationRow& row,
   eval_options.fps_repeats = options.fps_repeats;
   eval::EvalReport report =
       eval::evaluate(*run.scene, run.gaussians, run.background, views, "test", eval_options);
-  const fs::path out = paths.root / "eval";
-  eval::write_metrics_json(out / "metrics.json", report);
-  eval::write_per_view_csv(out / "per_view.csv", report);
+  const io::OutputRequest eval_folder{
+      paths.root / "eval", io::OutputKind::Eval, true, {paths.root, run.scene->root}, ""};
+  io::write_into_folder_atomically(eval_folder, [&](const fs::path& tmp) {
+    eval::write_metrics_json(tmp / "metrics.json", report);
+    eval::write_per_view_csv(tmp / "per_view.csv", report);
+  });
 
   const json summary = json::parse(io::read_file(paths.summary()));
   // The Gaussian iterations only (the denoiser's fine-tuning after them is
@@ -156,8 +161,10 @@ json evaluate_row(const AblationOptions& options, const AblationRow& row,
   auto settings = eval::denoise_settings(options.denoise_steps, false, sampler);
   eval::DenoisedReport denoised = eval::evaluate_denoised(*run.scene, run.gaussians, run.background,
                                                           *run.denoiser, views, "test", settings);
-  eval::write_denoised_json(out / "denoised.json", denoised);
-  eval::write_denoised_csv(out / "per_view_denoised.csv", denoised);
+  io::write_into_folder_atomically(eval_folder, [&](const fs::path& tmp) {
+    eval::write_denoised_json(tmp / "denoised.json", denoised);
+    eval::write_denoised_csv(tmp / "per_view_denoised.csv", denoised);
+  });
   for (const eval::DenoisedResult& r : denoised.results) {
     json entry = base;
     entry["output"] = r.setting.name;
@@ -233,7 +240,14 @@ json run_ablation(const AblationOptions& options) {
   core::require(fs::is_directory(options.data), options.data, "no such dataset folder");
   std::vector<json> configs;
   for (const AblationRow& row : options.rows) configs.push_back(row_config(options, row));
-  fs::create_directories(options.out);
+  // Rows are trained into an earlier ablation folder (reused or continued),
+  // never into a folder ddhgs did not make.
+  const io::OutputRequest request{options.out, io::OutputKind::Ablation, true, {options.data}, ""};
+  if (io::check_output_folder(request) != io::OutputState::Ours) {
+    fs::create_directories(options.out);
+    io::mark_output_folder(options.out, io::OutputKind::Ablation);
+  }
+  io::FolderLock lock(options.out, "ablate");
 
   json entries = json::array();
   for (size_t i = 0; i < options.rows.size(); ++i) {

@@ -4,11 +4,14 @@
 // evaluated after denoising, per sampler setting (eval/denoised_eval.h).
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "app/registry.h"
 #include "app/trained_run.h"
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
+#include "io/files/folder_lock.h"
+#include "io/files/output_folder.h"
 
 namespace ddhgs::app {
 namespace {
@@ -52,33 +55,42 @@ Action setup(CLI::App& parent) {
   cmd->add_flag("--no-denoise", args->no_denoise, "Evaluate the raw render only");
   return [args] {
     TrainedRun run = open_trained_run(args->run, args->data);
+    io::FolderLock lock(run.root, "eval");
     std::vector<int> views = eval::split_views(*run.scene, args->split);
     eval::EvalOptions options;
     options.fps_repeats = args->fps_repeats;
     eval::EvalReport report =
         eval::evaluate(*run.scene, run.gaussians, run.background, views, args->split, options);
 
-    fs::path out = run.root / "eval";
-    fs::create_directories(out);
-    std::string suffix = args->split == "test" ? "" : "_" + args->split;
-    fs::path metrics = out / ("metrics" + suffix + ".json");
-    fs::path per_view = out / ("per_view" + suffix + ".csv");
-    eval::write_metrics_json(metrics, report);
-    eval::write_per_view_csv(per_view, report);
-    std::cout << eval::format_report(report) << "wrote " << metrics.string() << " and "
-              << per_view.string() << "\n";
-    if (!run.denoiser || args->no_denoise) return 0;
+    std::optional<eval::DenoisedReport> denoised;
+    if (run.denoiser && !args->no_denoise) {
+      auto settings = eval::denoise_settings(args->denoise_steps, args->ddpm,
+                                             sampler_options(run, args->sampler));
+      denoised = eval::evaluate_denoised(*run.scene, run.gaussians, run.background, *run.denoiser,
+                                         views, args->split, settings);
+    }
 
-    auto settings = eval::denoise_settings(args->denoise_steps, args->ddpm,
-                                           sampler_options(run, args->sampler));
-    eval::DenoisedReport denoised = eval::evaluate_denoised(
-        *run.scene, run.gaussians, run.background, *run.denoiser, views, args->split, settings);
-    fs::path denoised_json = out / ("denoised" + suffix + ".json");
-    fs::path denoised_csv = out / ("per_view_denoised" + suffix + ".csv");
-    eval::write_denoised_json(denoised_json, denoised);
-    eval::write_denoised_csv(denoised_csv, denoised);
-    std::cout << eval::format_denoised(denoised) << "wrote " << denoised_json.string() << " and "
-              << denoised_csv.string() << "\n";
+    // Every file of this evaluation appears, or none does.
+    const fs::path out = run.root / "eval";
+    const std::string suffix = args->split == "test" ? "" : "_" + args->split;
+    const std::string metrics = "metrics" + suffix + ".json";
+    const std::string per_view = "per_view" + suffix + ".csv";
+    const std::string denoised_json = "denoised" + suffix + ".json";
+    const std::string denoised_csv = "per_view_denoised" + suffix + ".csv";
+    io::write_into_folder_atomically(
+        {out, io::OutputKind::Eval, true, {run.root, run.scene->root}, ""},
+        [&](const fs::path& tmp) {
+          eval::write_metrics_json(tmp / metrics, report);
+          eval::write_per_view_csv(tmp / per_view, report);
+          if (!denoised) return;
+          eval::write_denoised_json(tmp / denoised_json, *denoised);
+          eval::write_denoised_csv(tmp / denoised_csv, *denoised);
+        });
+    std::cout << eval::format_report(report) << "wrote " << (out / metrics).string() << " and "
+              << (out / per_view).string() << "\n";
+    if (denoised)
+      std::cout << eval::format_denoised(*denoised) << "wrote " << (out / denoised_json).string()
+                << " and " << (out / denoised_csv).string() << "\n";
     return 0;
   };
 }

@@ -10,6 +10,8 @@
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
 #include "eval/render_frames.h"
+#include "io/files/folder_lock.h"
+#include "io/files/output_folder.h"
 
 namespace ddhgs::app {
 namespace {
@@ -99,15 +101,22 @@ Action setup(CLI::App& parent) {
           sampler);
       folder += "_" + setting.front().name;
     }
-    options.out_dir = args->out.empty() ? run.root / "renders" / folder : fs::path(args->out);
+    const fs::path out_dir =
+        args->out.empty() ? run.root / "renders" / folder : fs::path(args->out);
 
     std::vector<eval::Frame> frames =
         args->orbit > 0 ? eval::orbit_frames(scene, args->orbit)
                         : eval::view_frames(scene, eval::split_views(scene, args->split));
     core::require(!frames.empty(), scene.root, "the " + what + " split has no views to render");
-    int files = eval::render_frames(scene, run.gaussians, run.background, frames, options);
+    io::FolderLock lock(run.root, "render");
+    int files = 0;
+    io::write_into_folder_atomically(
+        {out_dir, io::OutputKind::Renders, true, {run.root, scene.root}, ""},
+        [&](const fs::path& tmp) {
+          files = eval::render_frames(scene, run.gaussians, run.background, frames, options, tmp);
+        });
     std::cout << "rendered " << frames.size() << " frames (" << what << "): " << files
-              << " files in " << options.out_dir.string() << "\n";
+              << " files in " << out_dir.string() << "\n";
     return 0;
   };
 }

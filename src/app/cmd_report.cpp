@@ -8,6 +8,7 @@
 #include "core/error.h"
 #include "eval/report.h"
 #include "io/atomic_file.h"
+#include "io/files/folder_lock.h"
 #include "train/run_folder.h"
 
 namespace ddhgs::app {
@@ -61,6 +62,7 @@ Action setup(CLI::App& parent) {
       ->capture_default_str();
   return [args] {
     TrainedRun run = open_trained_run(args->run, args->data);
+    io::FolderLock lock(run.root, "report");
     train::RunPaths paths{run.root};
     eval::RunRecords records;
     fs::path name = fs::absolute(run.root).lexically_normal();
@@ -71,6 +73,7 @@ Action setup(CLI::App& parent) {
     records.eval_metrics = read_json_if_present(run.root / "eval" / "metrics.json");
     eval::ReportOptions options;
     options.out_dir = args->out.empty() ? run.root / "report" : fs::path(args->out);
+    options.inputs = {run.root, run.scene->root};
     options.max_views = args->views;
     options.viewer_views = args->viewer_views;
     options.viewer_max_px = args->viewer_px;

@@ -4,6 +4,7 @@
 
 #include "app/registry.h"
 #include "core/log.h"
+#include "io/files/output_folder.h"
 #include "synth/generate.h"
 
 namespace ddhgs::app {
@@ -75,6 +76,8 @@ Action setup(CLI::App& parent) {
   cmd->add_flag("--noisy-edges", args->noisy_edges, "Much noisier edge bands (ablations)");
   return [args, cmd] {
     synth::SynthConfig config = resolve(*args, cmd);
+    // Refused before the announcement: a refusal is the only line printed.
+    io::check_output_folder({args->out, io::OutputKind::Scene, args->force, {}});
     core::log_info("synth: preset " + config.preset + ", " + std::to_string(config.views) +
                    " views of " + std::to_string(config.width) + "x" +
                    std::to_string(config.height) + " px, " + std::to_string(config.bands) +

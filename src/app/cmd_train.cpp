@@ -1,5 +1,6 @@
 // `ddhgs train DATA --out RUN`: trains N-band Gaussians on a dataset folder.
 // A preset (configs/) gives every hyperparameter; each flag overrides one key.
+#include <csignal>
 #include <filesystem>
 #include <memory>
 #include <vector>
@@ -63,6 +64,13 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
   for (const auto& assignment : a.assignments) train::apply_assignment(config, assignment);
 }
 
+// The shell's convention for a process stopped by a signal: 128 + signal
+// (130 for Ctrl-C, 143 for SIGTERM).
+int interrupted_exit_code() {
+  const int signal = train::Trainer::stop_signal();
+  return 128 + (signal > 0 ? signal : SIGINT);
+}
+
 int run_new(const TrainArgs& a, CLI::App* cmd) {
   if (a.data.empty()) throw core::Error("train: give a dataset folder (or --resume RUN)");
   if (a.out.empty()) throw core::Error("train: --out RUN is required");
@@ -75,7 +83,7 @@ int run_new(const TrainArgs& a, CLI::App* cmd) {
   train::validate_config(config, "command line");
   auto trainer = train::Trainer::start(config, {a.out}, a.force);
   auto status = trainer->run();
-  if (status == train::TrainStatus::Interrupted) return 130;
+  if (status == train::TrainStatus::Interrupted) return interrupted_exit_code();
   core::log_info("done: " + a.out + "/gaussians.ply; evaluate with: ddhgs eval " + a.out);
   return 0;
 }
@@ -90,7 +98,7 @@ int run_resume(const TrainArgs& a, CLI::App* cmd) {
   if (!a.data.empty()) throw core::Error("--resume", "give the run folder only, not a dataset");
   auto trainer = train::Trainer::resume({a.resume}, a.iterations);
   auto status = trainer->run();
-  if (status == train::TrainStatus::Interrupted) return 130;
+  if (status == train::TrainStatus::Interrupted) return interrupted_exit_code();
   core::log_info("done: " + a.resume + "/gaussians.ply");
   return 0;
 }

@@ -54,16 +54,15 @@ std::vector<Frame> orbit_frames(const io::Scene& scene, int count) {
 
 int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
                   const torch::Tensor& background, const std::vector<Frame>& frames,
-                  const RenderOptions& options) {
+                  const RenderOptions& options, const fs::path& out_dir) {
   torch::NoGradGuard no_grad;
-  fs::create_directories(options.out_dir);
   const std::vector<double>& wavelengths = scene.wavelengths_nm;
   const std::string label = options.bands.label;
   int written = 0;
   core::ProgressBar bar("render", int64_t(frames.size()));
   for (size_t i = 0; i < frames.size(); ++i) {
     const Frame& frame = frames[i];
-    fs::path stem = options.out_dir / frame.name;
+    fs::path stem = out_dir / frame.name;
     torch::Tensor image =
         model::render_gaussians(gaussians, frame.camera, background).image;  // [H, W, N]
     if (options.transform) image = options.transform(image);
@@ -94,7 +93,7 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
     }
     bar.update(int64_t(i + 1));
   }
-  bar.finish(std::to_string(written) + " files in " + options.out_dir.string());
+  bar.finish(std::to_string(written) + " files");
   return written;
 }
 

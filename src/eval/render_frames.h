@@ -29,7 +29,6 @@ struct Frame {
 };
 
 struct RenderOptions {
-  std::filesystem::path out_dir;
   OutputFormat format = OutputFormat::Png;
   BandSelection bands;  // default: pseudo-RGB
   Colormap colormap = Colormap::Viridis;
@@ -47,15 +46,17 @@ std::vector<Frame> view_frames(const io::Scene& scene, const std::vector<int>& v
 // Frames orbit_000, orbit_001, ... along eval::orbit_cameras of the training views.
 std::vector<Frame> orbit_frames(const io::Scene& scene, int count);
 
-// Writes, per frame, into out_dir (created):
+// Writes, per frame, into out_dir (an existing folder):
 //   NAME.npy | NAME.hdr + NAME.img      the cube (npy / envi formats)
 //   NAME_LABEL.png                      picture (LABEL: rgb, band42, 750-768nm)
 //   NAME_LABEL_diff_max0.1.png          error heatmap (diff, frames with truth)
 //   NAME_LABEL_compare.png              truth | render | error (diff, frames with truth)
 // Ground truth is the clean view when the scene has one, else the stored view.
-// Returns the number of files written. Every file is written atomically.
+// Returns the number of files written. The caller makes them appear together
+// (io::write_into_folder_atomically).
 int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
                   const torch::Tensor& background,  // [N]
-                  const std::vector<Frame>& frames, const RenderOptions& options);
+                  const std::vector<Frame>& frames, const RenderOptions& options,
+                  const std::filesystem::path& out_dir);
 
 }  // namespace ddhgs::eval

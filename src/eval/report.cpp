@@ -12,6 +12,7 @@
 #include "eval/report_views.h"
 #include "io/atomic_file.h"
 #include "io/cube.h"
+#include "io/files/output_folder.h"
 #include "io/image.h"
 
 namespace ddhgs::eval {
@@ -160,14 +161,6 @@ void write_viewer_script(const fs::path& path, const std::string& name,
 
 // An existing --out folder is replaced only when it is an earlier report, so
 // a mistyped path cannot wipe unrelated files.
-void check_replaceable(const fs::path& out) {
-  if (!fs::exists(out)) return;
-  core::require(fs::is_directory(out) &&
-                    (fs::is_empty(out) ||
-                     (fs::exists(out / "index.html") && fs::exists(out / "assets" / "data.js"))),
-                out, "exists and is not a ddhgs report; choose another --out");
-}
-
 }  // namespace
 
 std::vector<json> read_metrics_log(const fs::path& path) {
@@ -313,20 +306,11 @@ fs::path write_report(const io::Scene& scene, const model::Gaussians& gaussians,
                       const ReportOptions& options) {
   torch::NoGradGuard no_grad;
   core::require(!scene.views.empty(), scene.root, "the dataset has no views to report on");
-  fs::path out = fs::absolute(options.out_dir).lexically_normal();
-  if (out.filename().empty()) out = out.parent_path();  // "DIR/"
-  check_replaceable(out);
-  const fs::path stage = out.parent_path() / (out.filename().string() + ".tmp");
-  fs::remove_all(stage);
-  try {
-    build_report(stage, scene, gaussians, background, records, options);
-  } catch (...) {
-    std::error_code ignored;  // the original error matters, not this one
-    fs::remove_all(stage, ignored);
-    throw;
-  }
-  fs::remove_all(out);
-  fs::rename(stage, out);
+  const fs::path out = io::write_folder_atomically(
+      {options.out_dir, io::OutputKind::Report, true, options.inputs, ""},
+      [&](const fs::path& stage) {
+        build_report(stage, scene, gaussians, background, records, options);
+      });
   return out / "index.html";
 }
 

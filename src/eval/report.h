@@ -27,6 +27,8 @@ struct RunRecords {
 
 struct ReportOptions {
   std::filesystem::path out_dir;
+  // The run and dataset folders: out_dir may neither be nor contain them.
+  std::vector<std::filesystem::path> inputs;
   int max_views = 4;  // test views shown as pictures
   // Test views in the spectral viewer. Each carries every band of the render
   // and of the ground truth as 8-bit images, about 2 x N x 192 x 192 bytes
@@ -39,7 +41,8 @@ struct ReportOptions {
 // Renders the test views (the training views when there are none), measures
 // them against the stored views and the clean ground truth (when the scene
 // has it), and writes the report. The folder is built under a temporary
-// sibling and renamed into place, replacing an earlier report. Returns the
+// sibling and renamed into place (io::write_folder_atomically), replacing an
+// earlier report; anything else in out_dir's place is refused. Returns the
 // path of index.html.
 std::filesystem::path write_report(const io::Scene& scene, const model::Gaussians& gaussians,
                                    const torch::Tensor& background,  // [N]

@@ -10,6 +10,7 @@
 #include <ios>
 
 #include "core/error.h"
+#include "io/files/stale_files.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
@@ -73,6 +74,7 @@ void write_atomically(const fs::path& path, const std::function<void(const fs::p
     if (ec || !fs::is_directory(parent))
       throw core::Error(path, "cannot create its folder " + parent.string() + ": " + ec.message());
   }
+  remove_stale_temporaries_once(parent.empty() ? fs::path(".") : parent);
   fs::path tmp = temporary_sibling(path);
   auto remove_tmp = [&] {
     std::error_code ignored;

@@ -12,7 +12,8 @@ namespace ddhgs::io {
 // Calls write(tmp_path), then renames tmp_path to path. On any exception the
 // temporary file is removed and the exception propagates (as core::Error
 // naming path for I/O failures such as a full disk). Missing parent folders
-// are created.
+// are created. Temporaries that dead processes left in the folder are
+// removed first (io/files/stale_files.h).
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write);
 

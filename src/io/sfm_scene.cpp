@@ -1,6 +1,5 @@
 // `ddhgs process`, last step: COLMAP poses -> transforms.json, sparse points
 // with per-band spectra, and the whole command built in a temporary folder.
-#include <unistd.h>
 #include <nlohmann/json.hpp>
 
 #include <chrono>
@@ -10,6 +9,7 @@
 #include "core/log.h"
 #include "io/atomic_file.h"
 #include "io/dataset.h"
+#include "io/files/output_folder.h"
 #include "io/ply.h"
 #include "io/sfm.h"
 
@@ -200,11 +200,9 @@ ProcessResult process_cubes(const ProcessOptions& options) {
   if (out.filename().empty()) out = out.parent_path();
   const bool run_sfm = options.poses.empty();
   if (run_sfm) check_colmap_options(options.colmap);
-  if (fs::exists(out)) {
-    core::require(fs::is_directory(out), out, "exists and is not a folder");
-    core::require(options.force || fs::is_empty(out), out,
-                  "exists and is not empty; pass --force to replace it");
-  }
+  const OutputRequest request{
+      out, OutputKind::Scene, options.force, {options.cubes_dir, options.poses}};
+  check_output_folder(request);
   if (run_sfm) find_colmap(options.colmap);
   CubeSet cubes = scan_cubes(options.cubes_dir, options.wavelengths);
   core::log_info("process: " + std::to_string(cubes.files.size()) + " cubes of " +
@@ -213,14 +211,12 @@ ProcessResult process_cubes(const ProcessOptions& options) {
 
   fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
   fs::create_directories(parent);
-  fs::path tmp = parent / ("." + out.filename().string() + ".tmp-" + std::to_string(getpid()));
   // The log lives beside the output while COLMAP runs, so a failed run keeps it.
   fs::path failed_log = parent / (out.filename().string() + ".colmap.log");
-  fs::remove_all(tmp);
   fs::remove(failed_log);
   ProcessResult result;
   result.views = int(cubes.files.size());
-  try {
+  write_folder_atomically(request, [&](const fs::path& tmp) {
     Stretch stretch = write_pseudo_rgb_images(cubes, options.pseudo_rgb, tmp / "images");
     ColmapModel model;
     if (run_sfm) {
@@ -272,13 +268,7 @@ ProcessResult process_cubes(const ProcessOptions& options) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     summary["seconds"] = result.seconds;
     write_file_atomically(tmp / "process.json", summary.dump(2) + "\n");
-    if (fs::exists(out)) fs::remove_all(out);
-    fs::rename(tmp, out);
-  } catch (...) {
-    std::error_code ignored;
-    fs::remove_all(tmp, ignored);
-    throw;
-  }
+  });
   if (!result.unregistered.empty()) {
     std::string names;
     for (const auto& n : result.unregistered) names += (names.empty() ? "" : ", ") + n;

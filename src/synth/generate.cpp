@@ -1,7 +1,5 @@
 #include "synth/generate.h"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <nlohmann/json.hpp>
 
@@ -10,6 +8,7 @@
 #include "core/log.h"
 #include "io/atomic_file.h"
 #include "io/cube.h"
+#include "io/files/output_folder.h"
 #include "io/image.h"
 #include "io/ply.h"
 #include "io/transforms.h"
@@ -144,18 +143,8 @@ nlohmann::json describe(const SynthConfig& c, const SpectralSetup& setup, const 
 SynthResult write_synthetic_scene(const SynthConfig& config, const fs::path& out, bool force) {
   validate(config);
   auto start = std::chrono::steady_clock::now();
-  if (fs::exists(out)) {
-    core::require(fs::is_directory(out), out, "exists and is not a folder");
-    core::require(force || fs::is_empty(out), out,
-                  "exists and is not empty; pass --force to replace it");
-  }
-  fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
-  fs::create_directories(parent);
-  fs::path tmp = parent / ("." + out.filename().string() + ".tmp-" + std::to_string(getpid()));
-  fs::remove_all(tmp);
-
   SynthResult result;
-  try {
+  io::write_folder_atomically({out, io::OutputKind::Scene, force, {}}, [&](const fs::path& tmp) {
     for (const char* sub : {"hyperspectral", "clean", "images"}) fs::create_directories(tmp / sub);
     PlantScene scene = PlantScene::build(config.seed, config.ground);
     NoiseModel noise;
@@ -222,15 +211,9 @@ SynthResult write_synthetic_scene(const SynthConfig& config, const fs::path& out
     io::write_transforms(tmp / "transforms.json", transforms);
     io::write_file_atomically(tmp / "synth.json", describe(config, setup, scene).dump(2) + "\n");
 
-    if (fs::exists(out)) fs::remove_all(out);
-    fs::rename(tmp, out);
     result.views = int(cameras.size());
     result.points = int(count);
-  } catch (...) {
-    std::error_code ignored;
-    fs::remove_all(tmp, ignored);
-    throw;
-  }
+  });
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

@@ -43,9 +43,10 @@ struct SynthResult {
   double seconds = 0;
 };
 
-// Renders and writes the scene to out. An existing non-empty out is refused
-// unless force; everything is written to a temporary sibling folder that is
-// renamed at the end, so an interrupted run leaves nothing half-written.
+// Renders and writes the scene to out, built under a temporary name and put
+// in place at the end (io::write_folder_atomically), so an interrupted run
+// leaves nothing half-written. An existing scene written by ddhgs is
+// replaced only with force; anything else there is refused.
 SynthResult write_synthetic_scene(const SynthConfig& config, const std::filesystem::path& out,
                                   bool force);
 

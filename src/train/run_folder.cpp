@@ -17,34 +17,78 @@ fs::path RunPaths::checkpoint_at(int64_t iteration) const {
   return root / "checkpoints" / ("ckpt_" + std::to_string(iteration) + ".pt");
 }
 
-fs::path RunPaths::previous() const {
-  fs::path r = root;
-  if (r.filename().empty()) r = r.parent_path();
-  return r.parent_path() / (r.filename().string() + ".previous");
-}
+RunWriter::RunWriter(const RunPaths& run, io::OutputRequest request)
+    : run_(run), replacement_(std::move(request)) {}
 
-void create_run_folder(const RunPaths& run, const nlohmann::json& config, bool force) {
-  std::error_code ec;
-  const bool occupied =
-      fs::exists(run.root, ec) && (!fs::is_directory(run.root) || !fs::is_empty(run.root, ec));
-  if (occupied) {
-    if (!force)
-      throw core::Error(run.root,
-                        "already exists; pass --force to replace it (it is kept until "
-                        "the new run finishes) or --resume to continue it");
-    fs::remove_all(run.previous(), ec);
-    fs::rename(run.root, run.previous(), ec);
-    if (ec)
-      throw core::Error(run.root, "cannot move the existing run aside (" + ec.message() + ")");
+std::unique_ptr<RunWriter> RunWriter::create(const RunPaths& run, const nlohmann::json& config,
+                                             bool replace, const std::vector<fs::path>& inputs) {
+  // A run being written by another process must not be moved away under it.
+  io::FolderLock earlier;
+  if (io::output_kind(run.root) == io::OutputKind::Run) earlier = io::FolderLock(run.root, "train");
+  const bool unstarted = is_unstarted_run(run);
+  if (unstarted)
+    core::log_info(run.root.string() +
+                   " holds a run that stopped before its first checkpoint; "
+                   "replacing it");
+  std::unique_ptr<RunWriter> writer(
+      new RunWriter(run, {run.root, io::OutputKind::Run, replace || unstarted, inputs}));
+  writer->replacement_.begin();
+  try {
+    writer->lock_ = io::FolderLock(run.root, "train");
+    earlier.release();
+    fs::create_directories(run.root / "checkpoints");
+    io::write_file_atomically(run.config(), config.dump(2) + "\n");
+  } catch (const std::exception& e) {
+    const std::string why = e.what();
+    writer->replacement_.rollback();
+    throw core::Error(run.root, "cannot create the run folder (" + why + ")");
   }
-  fs::create_directories(run.root / "checkpoints", ec);
-  if (ec) throw core::Error(run.root, "cannot create the run folder (" + ec.message() + ")");
-  io::write_file_atomically(run.config(), config.dump(2) + "\n");
+  if (writer->replacement_.replacing())
+    core::log_info("the earlier run is kept in " + writer->replacement_.aside().string() +
+                   " until this one finishes");
+  return writer;
 }
 
-void finish_replacing(const RunPaths& run) {
+void RunWriter::check(const RunPaths& run, bool replace, const std::vector<fs::path>& inputs) {
+  io::check_output_folder(
+      {run.root, io::OutputKind::Run, replace || is_unstarted_run(run), inputs});
+}
+
+std::unique_ptr<RunWriter> RunWriter::reopen(const RunPaths& run) {
+  std::unique_ptr<RunWriter> writer(new RunWriter(run, {run.root, io::OutputKind::Run, true, {}}));
+  if (io::output_kind(run.root) != io::OutputKind::Run)
+    throw core::Error(run.root,
+                      "not a ddhgs run folder (no " + std::string(io::kOutputMarker) + " marker)");
+  writer->lock_ = io::FolderLock(run.root, "train");
+  writer->replacement_.resume();
+  return writer;
+}
+
+void RunWriter::finished() {
+  if (replacement_.replacing())
+    core::log_info("removing " + replacement_.aside().string() + ", the run this one replaced");
+  replacement_.commit();
+}
+
+void RunWriter::failed() {
+  if (fs::exists(run_.checkpoint())) {
+    core::log_warn(run_.root.string() + " is kept; continue it with: ddhgs train --resume " +
+                   run_.root.string());
+    return;
+  }
+  if (replacement_.replacing())
+    core::log_info("restoring the earlier run from " + replacement_.aside().string());
+  lock_.release();
+  replacement_.rollback();
+}
+
+bool is_unstarted_run(const RunPaths& run) {
   std::error_code ec;
-  fs::remove_all(run.previous(), ec);
+  if (io::output_kind(run.root) != io::OutputKind::Run) return false;
+  if (fs::exists(run.checkpoint(), ec) || fs::exists(run.gaussians(), ec)) return false;
+  if (fs::is_directory(run.root / "checkpoints", ec) && !fs::is_empty(run.root / "checkpoints", ec))
+    return false;
+  return true;
 }
 
 nlohmann::json read_run_config(const RunPaths& run) {

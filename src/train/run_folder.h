@@ -10,6 +10,11 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <vector>
+
+#include "io/files/folder_lock.h"
+#include "io/files/output_folder.h"
 
 namespace ddhgs::train {
 
@@ -23,15 +28,43 @@ struct RunPaths {
   std::filesystem::path summary() const { return root / "train_summary.json"; }
   // The background spectrum a run learned (model.learn_background).
   std::filesystem::path learned_background() const { return root / "background.json"; }
-  // Where --force parks an earlier run until the new one has finished.
-  std::filesystem::path previous() const;
 };
 
-// Creates a fresh run folder and writes config.json. An existing non-empty
-// folder is refused unless force; with force it is moved to previous() (and
-// an older previous() removed), to be deleted by finish_replacing().
-void create_run_folder(const RunPaths& run, const nlohmann::json& config, bool force);
-void finish_replacing(const RunPaths& run);
+// A run folder while `train` writes it: locked against a second writer for
+// the writer's life (io/files/folder_lock.h) and marked as a ddhgs run.
+class RunWriter {
+ public:
+  // A new run: creates the folder and writes config.json. An existing run
+  // folder is replaced only with `replace` (--force), or when it is the
+  // remains of a run that stopped before its first checkpoint; it is kept
+  // beside as RUN.previous until the new run finishes (io::FolderReplacement).
+  // Anything that is not a ddhgs run, and any folder holding one of `inputs`,
+  // is refused (io::check_output_folder).
+  static std::unique_ptr<RunWriter> create(const RunPaths& run, const nlohmann::json& config,
+                                           bool replace,
+                                           const std::vector<std::filesystem::path>& inputs);
+  // What create() would refuse, checked before any work is done.
+  static void check(const RunPaths& run, bool replace,
+                    const std::vector<std::filesystem::path>& inputs);
+  // An existing run continued by --resume.
+  static std::unique_ptr<RunWriter> reopen(const RunPaths& run);
+
+  // Training finished: the run this one replaced, if any, is deleted.
+  void finished();
+  // Training failed: a run without a checkpoint is removed and the run it
+  // replaced comes back; a run with one is kept for --resume.
+  void failed();
+
+ private:
+  RunWriter(const RunPaths& run, io::OutputRequest request);
+  RunPaths run_;
+  io::FolderReplacement replacement_;
+  io::FolderLock lock_;
+};
+
+// True when the folder holds a ddhgs run that never reached a checkpoint
+// (config.json and an empty log at most): nothing there is worth keeping.
+bool is_unstarted_run(const RunPaths& run);
 
 // Reads and validates RUN/config.json (format_version, keys, types).
 nlohmann::json read_run_config(const RunPaths& run);

@@ -22,19 +22,29 @@ using nlohmann::json;
 namespace {
 
 std::atomic<bool> g_stop{false};
+std::atomic<int> g_stop_signal{0};
 
-extern "C" void on_sigint(int) {
+extern "C" void on_stop_signal(int signal) {
+  g_stop_signal = signal;
   g_stop = true;
 }
 
-// Restores the previous SIGINT handler when training ends.
-class SigintGuard {
+// Ctrl-C and the SIGTERM of batch schedulers and `systemctl stop` both save a
+// checkpoint; the previous handlers come back when training ends.
+class StopSignalGuard {
  public:
-  SigintGuard() { previous_ = std::signal(SIGINT, on_sigint); }
-  ~SigintGuard() { std::signal(SIGINT, previous_); }
+  StopSignalGuard() {
+    previous_int_ = std::signal(SIGINT, on_stop_signal);
+    previous_term_ = std::signal(SIGTERM, on_stop_signal);
+  }
+  ~StopSignalGuard() {
+    std::signal(SIGINT, previous_int_);
+    std::signal(SIGTERM, previous_term_);
+  }
 
  private:
-  void (*previous_)(int);
+  void (*previous_int_)(int);
+  void (*previous_term_)(int);
 };
 
 // Stream ids: 0 initialisation, 2 e + 1 the view order of epoch e, 2 i the
@@ -72,6 +82,10 @@ uint64_t mix_seed(uint64_t seed, uint64_t stream) {
 
 void Trainer::request_stop() {
   g_stop = true;
+}
+
+int Trainer::stop_signal() {
+  return g_stop_signal;
 }
 
 Trainer::Trainer(json config, RunPaths run) : config_(std::move(config)), run_(std::move(run)) {}
@@ -158,7 +172,9 @@ void Trainer::set_learning_rates(int64_t iteration) {
   state_.adam.group("sh_rest").lr = dc / o.at("sh_rest_lr_divisor").get<double>();
 }
 
-std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run, bool force) {
+std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run, bool replace) {
+  const std::vector<fs::path> inputs = {config.at("data").at("path").get<std::string>()};
+  RunWriter::check(run, replace, inputs);  // before the work of loading
   std::unique_ptr<Trainer> t(new Trainer(config, run));
   t->load_scene();  // before touching the output, so bad input leaves it intact
   const json& init = config.at("init");
@@ -174,8 +190,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   t->state_.stats.reset(t->state_.gaussians.size());
   t->state_.meta = {{"densify_added", 0}, {"densify_removed", 0}, {"seconds", 0.0}};
   t->create_optimizer();
-  t->replacing_ = fs::exists(run.root) && !fs::is_empty(run.root);
-  create_run_folder(run, config, force);
+  t->writer_ = RunWriter::create(run, config, replace, inputs);
   core::log_info("training " + std::to_string(t->state_.gaussians.size()) + " Gaussians x " +
                  std::to_string(t->scene_->bands()) + " bands on " +
                  std::to_string(t->scene_->train.size()) + " views (" +
@@ -184,10 +199,16 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
 }
 
 std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations) {
+  std::unique_ptr<RunWriter> writer = RunWriter::reopen(run);
+  if (!fs::exists(run.checkpoint()))
+    throw core::Error(run.root,
+                      "has no checkpoint to resume from (training stopped before "
+                      "its first one); start it again with --force");
   json config = read_run_config(run);
   const int64_t trained = config.at("iterations").get<int64_t>();
   if (iterations > 0) config["iterations"] = iterations;
   std::unique_ptr<Trainer> t(new Trainer(config, run));
+  t->writer_ = std::move(writer);
   t->load_scene();
   model::AdamOptions options;
   options.eps = config.at("optim").at("adam_eps").get<double>();
@@ -420,14 +441,27 @@ void Trainer::write_outputs(double seconds) {
 }
 
 TrainStatus Trainer::run() {
+  TrainStatus status;
+  try {
+    status = run_steps();
+  } catch (...) {
+    writer_->failed();
+    throw;
+  }
+  if (status == TrainStatus::Finished) writer_->finished();
+  return status;
+}
+
+TrainStatus Trainer::run_steps() {
   const int64_t iterations = config_.at("iterations").get<int64_t>();
   const int64_t total = total_steps();
   const json& output = config_.at("output");
   const int64_t log_every = output.at("log_every").get<int64_t>();
   const int64_t checkpoint_every = output.at("checkpoint_every").get<int64_t>();
   MetricsLog metrics(run_.metrics(), state_.iteration);
-  SigintGuard guard;
+  StopSignalGuard guard;
   g_stop = false;
+  g_stop_signal = 0;
   const double seconds_before = state_.meta.value("seconds", 0.0);
   const auto start = std::chrono::steady_clock::now();
   auto elapsed = [&] {
@@ -486,7 +520,6 @@ TrainStatus Trainer::run() {
   save(true);
   write_outputs(state_.meta["seconds"].get<double>());
   bar.finish();
-  if (replacing_) finish_replacing(run_);
   return TrainStatus::Finished;
 }
 

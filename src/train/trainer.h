@@ -31,16 +31,21 @@ enum class TrainStatus { Finished, Interrupted };
 
 class Trainer {
  public:
-  // A new run: creates the run folder (see create_run_folder), loads the
-  // scene from config["data"]["path"] and initialises the Gaussians.
+  // A new run: loads the scene from config["data"]["path"], initialises the
+  // Gaussians, then creates the run folder (RunWriter::create; `replace` is
+  // --force), so bad input leaves an existing folder untouched.
   static std::unique_ptr<Trainer> start(const nlohmann::json& config, const RunPaths& run,
-                                        bool force);
+                                        bool replace);
   // Continues RUN from RUN/checkpoint.pt; iterations > 0 replaces the total.
   static std::unique_ptr<Trainer> resume(const RunPaths& run, int64_t iterations = 0);
 
-  // Trains up to the configured iteration count; on SIGINT (or when
-  // request_stop() is called) saves a checkpoint and returns Interrupted.
+  // Trains up to the configured iteration count; on SIGINT or SIGTERM (or
+  // when request_stop() is called) saves a checkpoint and returns
+  // Interrupted. When it throws, the run folder is kept if it holds a
+  // checkpoint, else removed (and a run it replaced restored).
   TrainStatus run();
+  // The signal that interrupted run() (SIGINT, SIGTERM), 0 for request_stop().
+  static int stop_signal();
 
   // Loss terms; later components append their own before run().
   std::vector<LossTerm>& losses() { return losses_; }
@@ -72,6 +77,7 @@ class Trainer {
   // One denoiser-only step after the joint iterations (DiffusionTermOptions::
   // finetune_steps); renders the training views once, on the first call.
   void finetune_step(int64_t iteration, nlohmann::json& record);
+  TrainStatus run_steps();
   void save(bool numbered);
   void write_outputs(double seconds);
   // Mean PSNR (dB) of the held-out views, against noisy and clean ground truth.
@@ -97,7 +103,7 @@ class Trainer {
   double finetune_loss_avg_ = -1, finetune_identity_avg_ = -1;
   // Holds background_ as a trained parameter when model.learn_background is on.
   std::shared_ptr<torch::nn::Module> background_module_;
-  bool replacing_ = false;
+  std::unique_ptr<RunWriter> writer_;
 };
 
 }  // namespace ddhgs::train

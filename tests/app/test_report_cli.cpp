@@ -199,7 +199,7 @@ TEST_F(ReportCli, BadInputsGiveOneClearLineAndTouchNothing) {
   fs::path precious = test::temp_dir("report_cli_precious");
   io::write_file_atomically(precious / "notes.txt", "keep me");
   EXPECT_EQ(ddhgs("report " + run_->string() + " --out " + precious.string(), &out), 1);
-  EXPECT_TRUE(contains(last_line(out), "not a ddhgs report")) << out;
+  EXPECT_TRUE(contains(last_line(out), "did not write")) << out;
   EXPECT_EQ(io::read_file(precious / "notes.txt"), "keep me");
 
   // A broken metrics.jsonl is named with its line.

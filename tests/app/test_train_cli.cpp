@@ -152,9 +152,11 @@ TEST(TrainCli, RefusesAnExistingRunAndBadConfigs) {
   fs::create_directories(runs / "taken");
   std::ofstream(runs / "taken" / "keep.txt") << "earlier results";
   std::string out;
-  EXPECT_EQ(train(scene().string() + " --out " + (runs / "taken").string(), &out), 1);
-  EXPECT_NE(out.find("already exists; pass --force"), std::string::npos) << out;
-  EXPECT_TRUE(fs::exists(runs / "taken" / "keep.txt"));
+  for (const char* force : {"", " --force"}) {
+    EXPECT_EQ(train(scene().string() + " --out " + (runs / "taken").string() + force, &out), 1);
+    EXPECT_NE(out.find("holds files ddhgs did not write"), std::string::npos) << out;
+    EXPECT_TRUE(fs::exists(runs / "taken" / "keep.txt"));
+  }
 
   EXPECT_EQ(
       train(scene().string() + " --out " + (runs / "a").string() + " --set densify.evry=3", &out),

@@ -163,13 +163,12 @@ TEST_F(EvalScene, RejectsBandMismatchAndUnknownSplit) {
 
 TEST_F(EvalScene, RendersCubesPicturesAndComparisons) {
   RenderOptions options;
-  options.out_dir = test::temp_dir("eval_render") / "test";
+  const fs::path out = test::temp_dir("eval_render");
   options.format = OutputFormat::Npy;
   options.diff = true;
   int files =
-      render_frames(*scene, gaussians, background, view_frames(*scene, scene->test), options);
+      render_frames(*scene, gaussians, background, view_frames(*scene, scene->test), options, out);
   EXPECT_EQ(files, 2 * 4);
-  fs::path out = options.out_dir;
   io::Cube cube = io::read_cube(out / "v1.npy");
   torch::Tensor expected =
       model::render_gaussians(gaussians, scene->views[1].camera, background).image;
@@ -184,7 +183,7 @@ TEST_F(EvalScene, RendersCubesPicturesAndComparisons) {
 
 TEST_F(EvalScene, RendersEnviBandsAndOrbitFrames) {
   RenderOptions options;
-  options.out_dir = test::temp_dir("eval_orbit");
+  const fs::path out = test::temp_dir("eval_orbit");
   options.format = OutputFormat::Envi;
   options.bands = select_bands("", "540:610", scene->wavelengths_nm);
   options.colormap = Colormap::Gray;
@@ -192,14 +191,14 @@ TEST_F(EvalScene, RendersEnviBandsAndOrbitFrames) {
   std::vector<Frame> frames = orbit_frames(*scene, 3);
   ASSERT_EQ(frames.size(), 3u);
   EXPECT_EQ(frames[2].name, "orbit_002");
-  EXPECT_EQ(render_frames(*scene, gaussians, background, frames, options), 3 * 3);
-  io::Cube cube = io::read_cube(options.out_dir / "orbit_001.hdr");
+  EXPECT_EQ(render_frames(*scene, gaussians, background, frames, options, out), 3 * 3);
+  io::Cube cube = io::read_cube(out / "orbit_001.hdr");
   EXPECT_EQ(cube.bands(), 4);
   EXPECT_EQ(cube.wavelengths_nm, kWavelengths);
   // A grey picture of bands 550 and 600 nm: every channel equal.
-  torch::Tensor pic = io::read_image(options.out_dir / "orbit_001_540-610nm.png");
+  torch::Tensor pic = io::read_image(out / "orbit_001_540-610nm.png");
   EXPECT_TRUE(torch::equal(pic.select(2, 0), pic.select(2, 2)));
-  EXPECT_FALSE(fs::exists(options.out_dir / "orbit_001_540-610nm_compare.png"));
+  EXPECT_FALSE(fs::exists(out / "orbit_001_540-610nm_compare.png"));
 }
 
 }  // namespace

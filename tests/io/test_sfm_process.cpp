@@ -163,18 +163,31 @@ TEST(SfmProcess, AFailingColmapStageIsNamedWithItsError) {
             (std::vector<std::string>{"cubes", "fake-colmap", "model", "scene.colmap.log"}));
 }
 
-TEST(SfmProcess, ExistingOutputNeedsForce) {
+TEST(SfmProcess, ReplacesOnlyItsOwnSceneAndNeverItsInput) {
   Fixture f = make_fixture("sfm_process_force", 3);
   fs::create_directories(f.out);
   std::ofstream(f.out / "keep.txt") << "old";
   ProcessOptions o = options_for(f, fake_colmap(f.root, f.model));
+  o.force = true;
   std::string e = error_of([&] { process_cubes(o); });
-  EXPECT_TRUE(contains(e, "exists and is not empty; pass --force")) << e;
+  EXPECT_TRUE(contains(e, "did not write")) << e;
   EXPECT_TRUE(fs::exists(f.out / "keep.txt"));
+  fs::remove_all(f.out);
+  o.force = false;
+  process_cubes(o);
+  e = error_of([&] { process_cubes(o); });
+  EXPECT_TRUE(contains(e, "pass --force")) << e;
   o.force = true;
   process_cubes(o);
-  EXPECT_FALSE(fs::exists(f.out / "keep.txt"));
   EXPECT_TRUE(fs::exists(f.out / "transforms.json"));
+  // The cube folder as the output, or a folder holding it: refused, cubes intact.
+  const size_t cubes = size_t(std::distance(fs::directory_iterator(f.cubes), {}));
+  for (const fs::path& out : {f.cubes, f.root}) {
+    o.out = out;
+    e = error_of([&] { process_cubes(o); });
+    EXPECT_TRUE(contains(e, "input")) << e;
+    EXPECT_EQ(size_t(std::distance(fs::directory_iterator(f.cubes), {})), cubes);
+  }
 }
 
 TEST(SfmProcess, MissingColmapOrBadCubesCreateNothing) {

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <ATen/Parallel.h>
 
 #include <fstream>
@@ -263,39 +265,62 @@ TEST(SynthDataset, RoundTripsThroughLoadScene) {
   EXPECT_TRUE(fs::exists(dir / "scene" / "synth.json"));
 }
 
-TEST(SynthDataset, RefusesANonEmptyFolderWithoutForce) {
+TEST(SynthDataset, ReplacesOnlyItsOwnSceneAndOnlyWithForce) {
   auto dir = test::temp_dir("synth_force");
   fs::create_directories(dir / "out");
   std::ofstream(dir / "out" / "keep.txt") << "precious";
+  // A folder ddhgs did not write is never replaced, --force or not.
+  for (bool force : {false, true}) {
+    try {
+      write_synthetic_scene(tiny(1), dir / "out", force);
+      FAIL() << "expected core::Error";
+    } catch (const core::Error& e) {
+      EXPECT_NE(std::string(e.what()).find("did not write"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(slurp(dir / "out" / "keep.txt"), "precious");
+  }
+  // A scene ddhgs wrote needs --force, and is then replaced whole.
+  write_synthetic_scene(tiny(1), dir / "scene", false);
   try {
-    write_synthetic_scene(tiny(1), dir / "out", false);
+    write_synthetic_scene(tiny(2), dir / "scene", false);
     FAIL() << "expected core::Error";
   } catch (const core::Error& e) {
     EXPECT_NE(std::string(e.what()).find("--force"), std::string::npos) << e.what();
   }
-  EXPECT_EQ(slurp(dir / "out" / "keep.txt"), "precious");
-  write_synthetic_scene(tiny(1), dir / "out", true);
-  EXPECT_FALSE(fs::exists(dir / "out" / "keep.txt"));
-  EXPECT_TRUE(fs::exists(dir / "out" / "transforms.json"));
+  write_synthetic_scene(tiny(2), dir / "scene", true);
+  EXPECT_TRUE(fs::exists(dir / "scene" / "transforms.json"));
+  EXPECT_EQ(slurp(dir / "scene" / ".ddhgs-output"), "ddhgs scene\n");
   // An empty folder is fine without --force.
   fs::create_directories(dir / "empty");
   EXPECT_NO_THROW(write_synthetic_scene(tiny(1), dir / "empty", false));
+  // Nothing is left beside the folders but the folders themselves.
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(dir)) names.push_back(entry.path().filename());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"empty", "out", "scene"}));
   EXPECT_THROW(preset_config("nope"), core::Error);
 }
 
-TEST(SynthDataset, CliRefusesExistingFolderWithoutForce) {
+TEST(SynthDataset, CliRefusesFoldersItDidNotWriteEvenWithForce) {
   if (!fs::exists(test::ddhgs_binary())) GTEST_SKIP() << "ddhgs not built";
   auto dir = test::temp_dir("synth_cli");
   fs::create_directories(dir / "out");
   std::ofstream(dir / "out" / "keep.txt") << "x";
-  std::string base = test::ddhgs_binary() +
-                     " -q synth --width 16 --height 12 --bands 4 --views 2 --supersample 1 --out " +
-                     (dir / "out").string();
+  auto command = [&](const fs::path& out) {
+    return test::ddhgs_binary() +
+           " -q synth --width 16 --height 12 --bands 4 --views 2 --supersample 1 --out " +
+           out.string();
+  };
   std::string output;
-  EXPECT_EQ(test::run_command(base + " 2>&1", &output), 1) << output;
+  EXPECT_EQ(test::run_command(command(dir / "out") + " --force 2>&1", &output), 1) << output;
+  EXPECT_NE(output.find("did not write"), std::string::npos) << output;
+  EXPECT_EQ(std::count(output.begin(), output.end(), '\n'), 1) << output;
+  EXPECT_TRUE(fs::exists(dir / "out" / "keep.txt"));
+  EXPECT_EQ(test::run_command(command(dir / "scene") + " 2>&1", &output), 0) << output;
+  EXPECT_EQ(test::run_command(command(dir / "scene") + " 2>&1", &output), 1) << output;
   EXPECT_NE(output.find("--force"), std::string::npos) << output;
-  EXPECT_EQ(test::run_command(base + " --force 2>&1", &output), 0) << output;
-  EXPECT_TRUE(fs::exists(dir / "out" / "hyperspectral" / "r_001.npy"));
+  EXPECT_EQ(test::run_command(command(dir / "scene") + " --force 2>&1", &output), 0) << output;
+  EXPECT_TRUE(fs::exists(dir / "scene" / "hyperspectral" / "r_001.npy"));
 }
 
 }  // namespace

@@ -3,12 +3,14 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "io/atomic_file.h"
 #include "support/test_support.h"
 #include "train/checkpoint.h"
 #include "train/losses.h"
 #include "train/run_folder.h"
 
 using namespace ddhgs;
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -104,29 +106,107 @@ TEST(Checkpoint, RejectsMissingTruncatedAndForeignFiles) {
   }
 }
 
-TEST(Checkpoint, RunFolderRefusesToOverwriteAndKeepsThePreviousRunWithForce) {
+TEST(Checkpoint, RunFolderIsReplacedOnlyWithForceAndTheEarlierRunKeptUntilTheEnd) {
   auto dir = test::temp_dir("run_folder");
   train::RunPaths run{dir / "run"};
   nlohmann::json config = {{"format_version", 1}};
-  train::create_run_folder(run, config, false);
-  std::ofstream(run.root / "gaussians.ply") << "old";
-  EXPECT_THROW(train::create_run_folder(run, config, false), core::Error);
-  EXPECT_TRUE(std::filesystem::exists(run.root / "gaussians.ply"));
-  train::create_run_folder(run, config, true);
-  EXPECT_FALSE(std::filesystem::exists(run.root / "gaussians.ply"));
-  EXPECT_TRUE(std::filesystem::exists(run.previous() / "gaussians.ply"));
-  train::finish_replacing(run);
-  EXPECT_FALSE(std::filesystem::exists(run.previous()));
+  {
+    auto writer = train::RunWriter::create(run, config, false, {});
+    std::ofstream(run.checkpoint()) << "checkpoint";
+    std::ofstream(run.gaussians()) << "old";
+    writer->finished();
+  }
+  EXPECT_THROW(train::RunWriter::create(run, config, false, {}), core::Error);
+  EXPECT_EQ(io::read_file(run.gaussians()), "old");
+  const fs::path previous = dir / "run.previous";
+  {
+    // Replaced, then the new run fails before its first checkpoint: the
+    // earlier run comes back.
+    auto writer = train::RunWriter::create(run, config, true, {});
+    EXPECT_FALSE(fs::exists(run.gaussians()));
+    EXPECT_EQ(io::read_file(previous / "gaussians.ply"), "old");
+    writer->failed();
+  }
+  EXPECT_EQ(io::read_file(run.gaussians()), "old");
+  EXPECT_FALSE(fs::exists(previous));
+  {
+    auto writer = train::RunWriter::create(run, config, true, {});
+    EXPECT_TRUE(fs::exists(previous));
+    writer->finished();
+  }
+  EXPECT_FALSE(fs::exists(previous));
+  EXPECT_FALSE(fs::exists(run.gaussians()));
+}
+
+TEST(Checkpoint, InterruptedReplacementIsNeverReplacedAgainAndFinishesOnResume) {
+  auto dir = test::temp_dir("run_folder_pending");
+  train::RunPaths run{dir / "run"};
+  nlohmann::json config = {{"format_version", 1}};
+  train::RunWriter::create(run, config, false, {})->finished();
+  std::ofstream(run.checkpoint()) << "good";
+  {
+    // Interrupted (Ctrl-C) after a checkpoint: neither finished nor failed.
+    auto writer = train::RunWriter::create(run, config, true, {});
+    std::ofstream(run.checkpoint()) << "new";
+  }
+  const fs::path previous = dir / "run.previous";
+  EXPECT_EQ(io::read_file(previous / "checkpoint.pt"), "good");
+  // A second --force must not delete the only good copy.
+  try {
+    train::RunWriter::create(run, config, true, {});
+    FAIL() << "replaced a run whose earlier replacement never finished";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("run.previous"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(io::read_file(previous / "checkpoint.pt"), "good");
+  EXPECT_EQ(io::read_file(run.checkpoint()), "new");
+  // --resume finishes the replacement.
+  train::RunWriter::reopen(run)->finished();
+  EXPECT_FALSE(fs::exists(previous));
+  EXPECT_EQ(io::read_file(run.checkpoint()), "new");
+}
+
+TEST(Checkpoint, RunThatNeverCheckpointedIsReplacedWithoutForce) {
+  auto dir = test::temp_dir("run_folder_unstarted");
+  train::RunPaths run{dir / "run"};
+  nlohmann::json config = {{"format_version", 1}};
+  train::RunWriter::create(run, config, false, {});  // killed before its first checkpoint
+  EXPECT_TRUE(train::is_unstarted_run(run));
+  auto writer = train::RunWriter::create(run, config, false, {});
+  writer->finished();
+  EXPECT_FALSE(fs::exists(dir / "run.previous"));
+}
+
+TEST(Checkpoint, SecondWriterOfARunIsRefused) {
+  auto dir = test::temp_dir("run_folder_lock");
+  train::RunPaths run{dir / "run"};
+  auto writer = train::RunWriter::create(run, {{"format_version", 1}}, false, {});
+  std::ofstream(run.checkpoint()) << "checkpoint";
+  for (bool replace : {false, true}) {
+    try {
+      train::RunWriter::create(run, {{"format_version", 1}}, replace, {});
+      FAIL() << "a second writer was let in";
+    } catch (const core::Error& e) {
+      EXPECT_NE(std::string(e.what()).find("in use by ddhgs train (pid"), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_THROW(train::RunWriter::reopen(run), core::Error);
+  EXPECT_EQ(io::read_file(run.checkpoint()), "checkpoint");
 }
 
 TEST(Checkpoint, UnwritableRunFolderIsAClearError) {
-  train::RunPaths run{"/proc/ddhgs-cannot-write-here/run"};
+  auto dir = test::temp_dir("run_folder_unwritable");
+  std::ofstream(dir / "a-file") << "not a folder";
+  train::RunPaths run{dir / "a-file" / "run"};
   try {
-    train::create_run_folder(run, {{"format_version", 1}}, false);
+    train::RunWriter::create(run, {{"format_version", 1}}, false, {});
     FAIL();
   } catch (const core::Error& e) {
-    EXPECT_NE(std::string(e.what()).find("cannot create the run folder"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("cannot create the folder"), std::string::npos)
+        << e.what();
   }
+  EXPECT_EQ(io::read_file(dir / "a-file"), "not a folder");
 }
 
 TEST(Checkpoint, MetricsLogKeepsOnlyLinesUpToTheResumePoint) {
