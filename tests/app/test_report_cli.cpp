@@ -90,8 +90,8 @@ TEST_F(ReportCli, WritesSelfContainedReportThatAgreesWithTheRun) {
   EXPECT_TRUE(contains(out, (report / "index.html").string())) << out;
   EXPECT_FALSE(fs::exists(run_->string() + "/report.tmp"));
 
-  // The binary's copies of the page and of uPlot are those under web/ (a
-  // stale src/eval/report_assets.cpp fails here: rerun web/embed.py).
+  // The binary's copies of the page and of uPlot are those under web/ (the
+  // build embeds them; a stale build fails here).
   const fs::path web = test::source_dir() / "web";
   for (auto [written, source] :
        {std::pair{"assets/report.js", "report/report.js"},
