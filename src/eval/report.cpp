@@ -9,6 +9,7 @@
 #include "core/log.h"
 #include "eval/metrics.h"
 #include "eval/report_assets.h"
+#include "eval/report_splats.h"
 #include "eval/report_views.h"
 #include "io/atomic_file.h"
 #include "io/cube.h"
@@ -352,6 +353,9 @@ void build_report(const fs::path& stage, const io::Scene& scene, const model::Ga
   json data = report_data(scene, gaussians, records, options, views, results);
   io::write_file_atomically(stage / "assets" / "data.js",
                             "window.DDHGS_REPORT = " + data.dump() + ";\n");
+  json splats = splat_view_data(gaussians, scene, background, views.indices.front());
+  io::write_file_atomically(stage / "assets" / "splats.js",
+                            "window.DDHGS_SPLATS = " + splats.dump() + ";\n");
   write_static_files(stage, results.viewer_scripts);
 }
 
