@@ -2,8 +2,8 @@
 // N-band Gaussian PLY from one camera, so the renderer can be checked
 // against other tools on the same file.
 #include <chrono>
-#include <sstream>
 
+#include "app/number_list.h"
 #include "app/registry.h"
 #include "core/colour.h"
 #include "core/error.h"
@@ -26,22 +26,8 @@ struct RenderPlyArgs {
 
 // "--background 0.2" (every band) or one comma-separated value per band.
 torch::Tensor parse_background(const std::string& text, int64_t bands) {
-  std::vector<float> values;
-  std::stringstream items(text);
-  std::string item;
-  while (std::getline(items, item, ',')) {
-    size_t used = 0;
-    double value = 0;
-    try {
-      value = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || item.find_first_not_of(" ", used) != std::string::npos ||
-        !std::isfinite(value))
-      throw core::Error("--background: '" + item + "' is not a number");
-    values.push_back(float(value));
-  }
+  const std::vector<double> parsed = parse_number_list(text, "--background");
+  const std::vector<float> values(parsed.begin(), parsed.end());
   if (values.size() == 1) return torch::full({bands}, values[0]);
   if (int64_t(values.size()) != bands)
     throw core::Error("--background: " + std::to_string(values.size()) +

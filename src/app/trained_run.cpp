@@ -91,25 +91,34 @@ model::SamplerOptions sampler_options(const TrainedRun& run, const SamplerFlags&
   return sampler;
 }
 
-TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_override) {
+RunModel open_run_model(const fs::path& run_dir) {
   core::require(fs::is_directory(run_dir), run_dir,
                 "not a folder (expected a run folder written by ddhgs train)");
-  TrainedRun run;
+  RunModel run;
   run.root = run_dir;
   train::RunPaths paths{run_dir};
   run.config = train::read_run_config(paths);
   core::require(fs::exists(paths.gaussians()), paths.gaussians(),
                 "missing: the run has no final model (did training finish?)");
-  io::GaussianPly ply = io::read_gaussian_ply(paths.gaussians());
+  run.ply = io::read_gaussian_ply(paths.gaussians());
+  run.background = train::background(run.config, run.ply.bands());
+  if (run.config.at("model").at("learn_background").get<bool>())
+    run.background = read_learned_background(paths.learned_background(), run.ply.bands());
+  return run;
+}
 
+TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_override) {
+  RunModel model = open_run_model(run_dir);
+  TrainedRun run;
+  run.root = run_dir;
+  run.config = std::move(model.config);
+  train::RunPaths paths{run_dir};
   fs::path data = dataset_path(run, data_override);
   run.scene = io::load_scene(data, train::load_options(run.config));
   for (const std::string& warning : run.scene->warnings) core::log_warn(warning);
-  check_model_matches_scene(paths.gaussians(), ply, *run.scene);
-  run.gaussians = model::from_ply(ply);
-  run.background = train::background(run.config, run.scene->bands());
-  if (run.config.at("model").at("learn_background").get<bool>())
-    run.background = read_learned_background(paths.learned_background(), run.scene->bands());
+  check_model_matches_scene(paths.gaussians(), model.ply, *run.scene);
+  run.gaussians = model::from_ply(model.ply);
+  run.background = model.background;
   const fs::path denoiser = train::denoiser_path(paths);
   if (fs::exists(denoiser)) {
     run.denoiser = train::read_denoiser(denoiser);

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "io/dataset.h"
+#include "io/ply.h"
 #include "model/diffusion.h"
 #include "model/gaussians.h"
 
@@ -40,6 +41,18 @@ struct SamplerFlags {
 void add_sampler_flags(CLI::App* cmd, SamplerFlags& flags);
 // The run's sampler defaults (TrainedRun::sampler) with the flags that were given.
 model::SamplerOptions sampler_options(const TrainedRun& run, const SamplerFlags& flags);
+
+// A run's model without its dataset, for commands that need no views
+// (`ddhgs export`): the resolved config, gaussians.ply and the background
+// the run rendered with (learned or configured). core::Error naming the file
+// when the folder is not a run or a file is missing or malformed.
+struct RunModel {
+  std::filesystem::path root;
+  nlohmann::json config;
+  io::GaussianPly ply;
+  torch::Tensor background;  // [N]
+};
+RunModel open_run_model(const std::filesystem::path& run_dir);
 
 // data_override: a dataset folder to use instead of the config's data.path
 // (for a run folder copied to another machine). Throws core::Error naming the

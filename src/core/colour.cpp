@@ -226,22 +226,37 @@ torch::Tensor cie_band_weights(const std::vector<double>& wavelengths_nm, Illumi
   return weights;
 }
 
+const std::vector<double>& rgb_channel_wavelengths_nm() {
+  static const std::vector<double> wavelengths = {610, 550, 465};
+  return wavelengths;
+}
+
+bool is_rgb(const std::vector<double>& wavelengths_nm, int64_t bands) {
+  return bands == 3 && (wavelengths_nm.empty() || wavelengths_nm == rgb_channel_wavelengths_nm());
+}
+
+torch::Tensor cie_linear_srgb_map(const std::vector<double>& wavelengths_nm,
+                                  Illuminant illuminant) {
+  auto weights = cie_band_weights(wavelengths_nm, illuminant);  // [N, 3]
+  double white_y = weights.select(1, 1).sum().item<double>();
+  if (white_y <= 0) return torch::zeros_like(weights);
+  return weights.matmul(matrix_tensor().t()) / white_y;
+}
+
 torch::Tensor pseudo_rgb(const torch::Tensor& cube, const std::vector<double>& wavelengths_nm,
                          const PseudoRgbOptions& options) {
   require(cube.defined() && cube.dim() == 3, "pseudo-RGB: expected a cube [H, W, N]");
   const int64_t h = cube.size(0), w = cube.size(1), n = cube.size(2);
   auto pixels = cube.reshape({h * w, n}).to(torch::kFloat64);
   torch::Tensor rgb;
-  if (wavelengths_nm.empty() && n == 3 && options.mode == PseudoRgbMode::Cie) {
+  if (is_rgb(wavelengths_nm, n) && options.mode == PseudoRgbMode::Cie) {
     rgb = finish(pixels, options.exposure, false);
   } else if (options.mode == PseudoRgbMode::Cie) {
     require(int64_t(wavelengths_nm.size()) == n, "pseudo-RGB: expected one wavelength per band (" +
                                                      std::to_string(n) + "), got " +
                                                      std::to_string(wavelengths_nm.size()));
-    auto weights = cie_band_weights(wavelengths_nm, options.illuminant);  // [N, 3]
-    double white_y = weights.select(1, 1).sum().item<double>();
-    if (white_y <= 0) return torch::zeros({h, w, 3}, torch::kFloat32);
-    auto to_rgb = weights.matmul(matrix_tensor().t()) / white_y;  // [N, 3]
+    auto to_rgb = cie_linear_srgb_map(wavelengths_nm, options.illuminant);  // [N, 3]
+    if (!to_rgb.any().item<bool>()) return torch::zeros({h, w, 3}, torch::kFloat32);
     auto linear = pixels.matmul(to_rgb);
     if (options.white_balance) linear = linear / to_rgb.sum(0).clamp_min(1e-12);
     rgb = finish(linear, options.exposure, true);

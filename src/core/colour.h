@@ -80,9 +80,20 @@ PseudoRgbOptions parse_pseudo_rgb(const std::string& spec);
 // bands centred at wavelengths_nm (strictly increasing).
 torch::Tensor cie_band_weights(const std::vector<double>& wavelengths_nm, Illuminant illuminant);
 
+// Cie mode's linear part, double [N, 3]: linear sRGB = reflectance [N] x map,
+// scaled so a perfect white reflector has Y = 1, before clamping and the sRGB
+// curve. All zeros when no band reaches the visible range.
+torch::Tensor cie_linear_srgb_map(const std::vector<double>& wavelengths_nm, Illuminant illuminant);
+
+// Wavelengths (nm) an RGB dataset gives its R, G and B channels (io's RGB
+// scenes); pseudo-RGB shows such a cube, or a 3-band one without wavelengths,
+// as it is.
+const std::vector<double>& rgb_channel_wavelengths_nm();
+bool is_rgb(const std::vector<double>& wavelengths_nm, int64_t bands);
+
 // cube: float [H, W, N] (reflectance, ~[0, 1]); wavelengths_nm: N entries,
 // strictly increasing. Returns float32 [H, W, 3] in [0, 1], sRGB-encoded.
-// A cube with 3 bands and no wavelengths is taken to be RGB already.
+// An RGB cube (is_rgb) is shown as it is, clamped, without the sRGB curve.
 // Throws core::Error when shapes and wavelengths disagree.
 torch::Tensor pseudo_rgb(const torch::Tensor& cube, const std::vector<double>& wavelengths_nm,
                          const PseudoRgbOptions& options = {});

@@ -9,6 +9,7 @@
 #include "core/log.h"
 #include "eval/metrics.h"
 #include "eval/report_assets.h"
+#include "eval/report_splats.h"
 #include "eval/report_views.h"
 #include "io/atomic_file.h"
 #include "io/cube.h"
@@ -23,6 +24,15 @@ namespace {
 
 // The placeholder in web/report/index.html where the viewer's data scripts go.
 constexpr const char* kViewerScriptsMarker = "<!-- viewer data -->";
+
+// sqrt of the mean squared error over pixels, per band: double [N].
+torch::Tensor band_rmse(const torch::Tensor& pred,  // [H, W, N]
+                        const torch::Tensor& gt) {  // [H, W, N]
+  return (pred.to(torch::kDouble) - gt.to(torch::kDouble))
+      .square()
+      .mean(at::IntArrayRef{0, 1})
+      .sqrt();
+}
 
 // Metrics of the report's views against one kind of ground truth.
 struct TruthMetrics {
@@ -39,6 +49,10 @@ struct TruthMetrics {
             {"sam", m.sam_rad},
             {"rmse", m.rmse}};
   }
+  void add(const torch::Tensor& render, const torch::Tensor& truth) {  // [H, W, N] each
+    per_view.push_back(compute_metrics(render, truth));
+    band_rmse.push_back(eval::band_rmse(render, truth));
+  }
   std::vector<double> mean_band_psnr() const { return mean_metrics(per_view).band_psnr_db; }
   std::vector<double> mean_band_rmse() const {
     torch::Tensor mean = torch::stack(band_rmse).mean(0).contiguous();
@@ -50,15 +64,6 @@ struct TruthMetrics {
     return out;
   }
 };
-
-// sqrt of the mean squared error over pixels, per band: double [N].
-torch::Tensor band_rmse(const torch::Tensor& pred,  // [H, W, N]
-                        const torch::Tensor& gt) {  // [H, W, N]
-  return (pred.to(torch::kDouble) - gt.to(torch::kDouble))
-      .square()
-      .mean(at::IntArrayRef{0, 1})
-      .sqrt();
-}
 
 // Shortest exact-enough text of a number, e.g. 0.1 or 1082.5.
 std::string number(double value) {
@@ -182,22 +187,46 @@ std::vector<json> read_metrics_log(const fs::path& path) {
 
 namespace {
 
-// Writes the whole report into stage (an empty folder).
-void build_report(const fs::path& stage, const io::Scene& scene, const model::Gaussians& gaussians,
-                  const torch::Tensor& background, const RunRecords& records,
-                  const ReportOptions& options) {
-  const bool on_test = !scene.test.empty();
-  const std::vector<int>& views = on_test ? scene.test : scene.train;
-  const std::string split = on_test ? "test" : "training (the scene has no test views)";
-  const std::vector<double>& wl = scene.wavelengths_nm;
-  const std::vector<BandSelection> selections = report_band_selections(wl);
-
-  fs::create_directories(stage / "assets" / "views");
-  fs::create_directories(stage / "assets" / "viewer");
-
+// What rendering and measuring the report's views produced.
+struct ViewResults {
   TruthMetrics stored{"views", "captured views", {}, {}};
   TruthMetrics clean{"clean", "clean ground truth", {}, {}};
-  json figure_views = json::array(), viewer_views = json::array(), viewer_scripts = json::array();
+  json figure_views = json::array();    // pictures per view and band selection
+  json viewer_views = json::array();    // band atlases' layout per view
+  json viewer_scripts = json::array();  // their script files, relative to the report
+};
+
+// Which views the report shows and what to call them.
+struct ReportViews {
+  std::vector<int> indices;  // into scene.views
+  std::string split;         // "test", or "training (...)" when the scene has no test views
+};
+
+ReportViews report_views(const io::Scene& scene) {
+  if (!scene.test.empty()) return {scene.test, "test"};
+  return {scene.train, "training (the scene has no test views)"};
+}
+
+// truth | render | error pictures of one view, one per band selection.
+json write_view_figures(const fs::path& stage, const std::string& name, const torch::Tensor& render,
+                        const torch::Tensor& truth, const std::vector<double>& wl,
+                        const ReportOptions& options) {
+  json files;
+  for (const BandSelection& s : report_band_selections(wl)) {
+    std::string rel = "assets/views/" + safe_name(name) + "_" + s.label + ".png";
+    io::write_png(stage / rel, comparison_figure(render, truth, wl, s, options.diff_max));
+    files[s.label] = rel;
+  }
+  return {{"name", name}, {"files", files}};
+}
+
+// Renders every report view once, measures it against the stored views and
+// the clean ground truth, and writes pictures and spectral-viewer data for
+// the first few.
+ViewResults render_and_measure(const fs::path& stage, const io::Scene& scene,
+                               const model::Gaussians& gaussians, const torch::Tensor& background,
+                               const std::vector<int>& views, const ReportOptions& options) {
+  ViewResults out;
   core::ProgressBar bar("report", int64_t(views.size()));
   for (size_t i = 0; i < views.size(); ++i) {
     const int v = views[i];
@@ -206,43 +235,38 @@ void build_report(const fs::path& stage, const io::Scene& scene, const model::Ga
         model::render_gaussians(gaussians, scene.views[size_t(v)].camera, background).image;
     torch::Tensor captured = scene.image(v);           // [H, W, N]
     torch::Tensor clean_truth = scene.clean_image(v);  // [H, W, N] or undefined
-    stored.per_view.push_back(compute_metrics(render, captured));
-    stored.band_rmse.push_back(band_rmse(render, captured));
-    if (clean_truth.defined()) {
-      clean.per_view.push_back(compute_metrics(render, clean_truth));
-      clean.band_rmse.push_back(band_rmse(render, clean_truth));
-    }
+    out.stored.add(render, captured);
+    if (clean_truth.defined()) out.clean.add(render, clean_truth);
     const std::string name = scene.views[size_t(v)].name;
-    const std::string file = safe_name(name);
-    if (int(i) < options.max_views) {
-      const torch::Tensor& truth = clean_truth.defined() ? clean_truth : captured;
-      json files;
-      for (const BandSelection& s : selections) {
-        std::string rel = "assets/views/" + file + "_" + s.label + ".png";
-        io::write_png(stage / rel, comparison_figure(render, truth, wl, s, options.diff_max));
-        files[s.label] = rel;
-      }
-      figure_views.push_back({{"name", name}, {"files", files}});
-    }
+    if (int(i) < options.max_views)
+      out.figure_views.push_back(write_view_figures(stage, name, render,
+                                                    clean_truth.defined() ? clean_truth : captured,
+                                                    scene.wavelengths_nm, options));
     if (int(i) < options.viewer_views) {
       std::vector<std::pair<std::string, torch::Tensor>> cubes = {{"render", render},
                                                                   {"views", captured}};
       if (clean_truth.defined()) cubes.emplace_back("clean", clean_truth);
       json meta;
-      std::string script = "assets/viewer/" + file + ".js";
+      std::string script = "assets/viewer/" + safe_name(name) + ".js";
       write_viewer_script(stage / script, name, cubes, options.viewer_max_px, meta);
-      viewer_views.push_back(meta);
-      viewer_scripts.push_back(script);
+      out.viewer_views.push_back(meta);
+      out.viewer_scripts.push_back(script);
     }
     bar.update(int64_t(i + 1));
   }
+  bar.finish();
+  return out;
+}
 
-  const bool has_clean = !clean.per_view.empty();
-  json metrics = json::array({stored.row("render vs captured views")});
-  if (has_clean) metrics.push_back(clean.row("render vs clean ground truth"));
+// The metrics table, the per-band and per-view series, and the spectral
+// viewer's sources, from the measured views.
+json quality_data(const ViewResults& results, const RunRecords& records) {
+  const bool has_clean = !results.clean.per_view.empty();
+  json metrics = json::array({results.stored.row("render vs captured views")});
+  if (has_clean) metrics.push_back(results.clean.row("render vs clean ground truth"));
   add_eval_rows(records.eval_metrics, metrics);
-  std::vector<const TruthMetrics*> truths = {&stored};
-  if (has_clean) truths.push_back(&clean);
+  std::vector<const TruthMetrics*> truths = {&results.stored};
+  if (has_clean) truths.push_back(&results.clean);
   json psnr = json::array(), rmse = json::array(), sam = json::array(), sources = json::array();
   sources.push_back({{"key", "render"}, {"title", "render"}});
   for (const TruthMetrics* t : truths) {
@@ -251,52 +275,81 @@ void build_report(const fs::path& stage, const io::Scene& scene, const model::Ga
     sam.push_back({{"label", "vs " + t->title}, {"values", t->sam_per_view()}});
     sources.push_back({{"key", t->key}, {"title", t->title}});
   }
-  json view_names = json::array();
-  for (int v : views) view_names.push_back(scene.views[size_t(v)].name);
-  json selection_menu = json::array();
-  for (const BandSelection& s : selections)
-    selection_menu.push_back({{"label", s.label}, {"title", selection_title(s, wl)}});
+  return {{"metrics", metrics}, {"psnr", psnr}, {"rmse", rmse}, {"sam", sam}, {"sources", sources}};
+}
 
-  json data = {{"title", "ddhgs report: " + records.name},
-               {"subtitle", std::to_string(gaussians.size()) + " Gaussians, " +
-                                std::to_string(scene.bands()) + " bands, " + split + " views of " +
-                                fs::absolute(scene.root).string()},
-               {"wavelengths_nm", wl},
-               {"metrics", metrics},
-               {"metrics_note", metrics_note(records, views.size(), split)},
-               {"curves", training_curves(records.metrics_log)},
-               {"per_band", {{"psnr", psnr}, {"rmse", rmse}}},
-               {"sam_per_view", {{"views", view_names}, {"series", sam}}},
-               {"figures",
-                {{"selections", selection_menu},
-                 {"views", figure_views},
-                 {"caption", std::string(has_clean ? "clean ground truth" : "captured view") +
-                                 " | render | |render - truth| (colour bar 0 to " +
-                                 number(options.diff_max) + " reflectance)"}}},
-               {"viewer", {{"views", viewer_views}, {"sources", sources}}},
-               {"viridis", viridis_lut()},
-               {"diff_max", options.diff_max},
-               {"data_summary", data_summary(scene, gaussians)},
-               {"train_summary", records.train_summary},
-               {"config", records.config}};
+// window.DDHGS_REPORT: everything the page shows except images and the 3D model.
+json report_data(const io::Scene& scene, const model::Gaussians& gaussians,
+                 const RunRecords& records, const ReportOptions& options, const ReportViews& views,
+                 const ViewResults& results) {
+  const std::vector<double>& wl = scene.wavelengths_nm;
+  const json quality = quality_data(results, records);
+  json view_names = json::array();
+  for (int v : views.indices) view_names.push_back(scene.views[size_t(v)].name);
+  json selection_menu = json::array();
+  for (const BandSelection& s : report_band_selections(wl))
+    selection_menu.push_back({{"label", s.label}, {"title", selection_title(s, wl)}});
+  const bool has_clean = !results.clean.per_view.empty();
+  return {{"title", "ddhgs report: " + records.name},
+          {"subtitle", std::to_string(gaussians.size()) + " Gaussians, " +
+                           std::to_string(scene.bands()) + " bands, " + views.split + " views of " +
+                           fs::absolute(scene.root).string()},
+          {"wavelengths_nm", wl},
+          {"metrics", quality["metrics"]},
+          {"metrics_note", metrics_note(records, views.indices.size(), views.split)},
+          {"curves", training_curves(records.metrics_log)},
+          {"per_band", {{"psnr", quality["psnr"]}, {"rmse", quality["rmse"]}}},
+          {"sam_per_view", {{"views", view_names}, {"series", quality["sam"]}}},
+          {"figures",
+           {{"selections", selection_menu},
+            {"views", results.figure_views},
+            {"caption", std::string(has_clean ? "clean ground truth" : "captured view") +
+                            " | render | |render - truth| (colour bar 0 to " +
+                            number(options.diff_max) + " reflectance)"}}},
+          {"viewer", {{"views", results.viewer_views}, {"sources", quality["sources"]}}},
+          {"viridis", viridis_lut()},
+          {"diff_max", options.diff_max},
+          {"data_summary", data_summary(scene, gaussians)},
+          {"train_summary", records.train_summary},
+          {"config", records.config}};
+}
+
+// The page with a <script> per spectral-viewer file in place of its placeholder.
+std::string page_with_scripts(const ReportAsset& page, const json& scripts) {
+  std::string html = page.contents;
+  std::string tags;
+  for (const json& s : scripts) tags += "<script src=\"" + s.get<std::string>() + "\"></script>\n";
+  size_t at = html.find(kViewerScriptsMarker);
+  core::require(at != std::string::npos, page.source, "has no viewer-data placeholder");
+  return html.replace(at, std::string(kViewerScriptsMarker).size(), tags);
+}
+
+// index.html and the static files under assets/ (page script, style, libraries).
+void write_static_files(const fs::path& stage, const json& viewer_scripts) {
+  for (const ReportAsset& asset : report_assets()) {
+    if (asset.name == "index.html")
+      io::write_file_atomically(stage / "index.html", page_with_scripts(asset, viewer_scripts));
+    else
+      io::write_file_atomically(stage / "assets" / asset.name, asset.contents);
+  }
+}
+
+// Writes the whole report into stage (an empty folder).
+void build_report(const fs::path& stage, const io::Scene& scene, const model::Gaussians& gaussians,
+                  const torch::Tensor& background, const RunRecords& records,
+                  const ReportOptions& options) {
+  fs::create_directories(stage / "assets" / "views");
+  fs::create_directories(stage / "assets" / "viewer");
+  const ReportViews views = report_views(scene);
+  const ViewResults results =
+      render_and_measure(stage, scene, gaussians, background, views.indices, options);
+  json data = report_data(scene, gaussians, records, options, views, results);
   io::write_file_atomically(stage / "assets" / "data.js",
                             "window.DDHGS_REPORT = " + data.dump() + ";\n");
-
-  for (const ReportAsset& asset : report_assets()) {
-    if (asset.name != "index.html") {
-      io::write_file_atomically(stage / "assets" / asset.name, asset.contents);
-      continue;
-    }
-    std::string page = asset.contents;
-    std::string scripts;
-    for (const json& s : viewer_scripts)
-      scripts += "<script src=\"" + s.get<std::string>() + "\"></script>\n";
-    size_t at = page.find(kViewerScriptsMarker);
-    core::require(at != std::string::npos, asset.source, "has no viewer-data placeholder");
-    page.replace(at, std::string(kViewerScriptsMarker).size(), scripts);
-    io::write_file_atomically(stage / "index.html", page);
-  }
-  bar.finish();
+  json splats = splat_view_data(gaussians, scene, background, views.indices.front());
+  io::write_file_atomically(stage / "assets" / "splats.js",
+                            "window.DDHGS_SPLATS = " + splats.dump() + ";\n");
+  write_static_files(stage, results.viewer_scripts);
 }
 
 }  // namespace

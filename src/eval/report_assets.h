@@ -1,6 +1,7 @@
-// The static files of a report page (page template, script, style, and the
-// vendored uPlot charting library with its licence), carried inside the
-// binary; generated from web/ by web/embed.py.
+// The static files of a report page (page template, scripts, style, and the
+// vendored uPlot and PlayCanvas libraries with their licences), carried
+// inside the binary: the definition is generated from the files listed in
+// web/assets.cmake at build time (web/embed.cmake).
 #pragma once
 #include <string>
 #include <vector>

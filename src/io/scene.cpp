@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/colour.h"
 #include "core/error.h"
 #include "io/dataset.h"
 
@@ -47,7 +48,7 @@ bool is_identity(const std::vector<int>& index, int64_t bands) {
 }  // namespace
 
 std::vector<double> rgb_wavelengths_nm() {
-  return {610, 550, 465};
+  return core::rgb_channel_wavelengths_nm();
 }
 
 void hypernerf_split(int n, std::vector<int>& train, std::vector<int>& test) {

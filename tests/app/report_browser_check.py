@@ -1,9 +1,18 @@
 #!/usr/bin/env python3
 """Opens a ddhgs report in headless Chromium over the DevTools protocol (pipe
-transport, no extra packages), moves the wavelength slider and clicks a pixel
-with real input events, and checks from the page that the band image and the
-spectrum plot changed and that the console stayed free of errors. Saves a
-screenshot. Prints one JSON object; exit status 0 when every check passed.
+transport, no extra packages) with software WebGL (SwiftShader), and checks
+with real input events and from the page:
+
+  - the 3D view draws the model (pixels differ from its background), a band
+    chosen with its wavelength slider recolours it, and a click on the model
+    plots the spectrum of the Gaussians under the cursor;
+  - in the spectral viewer, the slider changes the band image and a click on
+    a pixel plots its spectra;
+  - the console stays free of errors.
+
+Saves a screenshot of the page and one of the 3D view (SCREENSHOT_PNG with
+"_3d" before the extension). Prints one JSON object; exit status 0 when every
+check passed.
 
 usage: report_browser_check.py CHROMIUM INDEX_HTML SCREENSHOT_PNG PROFILE_DIR
 """
@@ -18,7 +27,10 @@ import time
 FLAGS = [
     "--headless",
     "--no-sandbox",
-    "--disable-gpu",
+    # WebGL without a GPU: ANGLE on SwiftShader, Chromium's CPU renderer.
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--ignore-gpu-blocklist",
     "--no-first-run",
     "--disable-background-networking",
     "--disable-component-update",
@@ -132,6 +144,89 @@ def console_errors(events):
     return errors
 
 
+# The 3D view's canvas against its background colour: the fraction of pixels
+# that differ, the most different pixel (canvas pixels), and the pixels as a
+# data URL. The canvas keeps its drawing buffer, so it can be read any time.
+SPLAT_PIXELS = """(() => { const c = document.getElementById('splat-canvas');
+  const copy = document.createElement('canvas'); copy.width = c.width; copy.height = c.height;
+  const ctx = copy.getContext('2d'); ctx.drawImage(c, 0, 0);
+  const px = ctx.getImageData(0, 0, c.width, c.height).data, bg = window.ddhgsSplats.clearColour;
+  let drawn = 0, best = -1, at = [0, 0];
+  for (let i = 0; i < px.length; i += 4) {
+    const d = Math.max(Math.abs(px[i] - bg[0]), Math.abs(px[i + 1] - bg[1]), Math.abs(px[i + 2] - bg[2]));
+    if (d > 8) drawn += 1;
+    if (d > best) { best = d; at = [(i / 4) % c.width, Math.floor(i / 4 / c.width)]; }
+  }
+  return {fraction: drawn / (px.length / 4), best: at, size: [c.width, c.height], url: copy.toDataURL()}; })()"""
+FRAMES = "window.ddhgsSplats.frames"
+
+
+def wait_frames(dt, count):
+    """Waits until the 3D view has drawn `count` more frames."""
+    start = dt.evaluate(FRAMES)
+    dt.wait_for("%s >= %d" % (FRAMES, start + count), "the 3D view to draw")
+
+
+def check_splat_view(dt, screenshot):
+    """The 3D view: drawn, recoloured by the slider, a spectrum on click."""
+    checks = {}
+    dt.wait_for("window.ddhgsSplats && window.ddhgsSplats.ready", "the 3D view")
+    # Without the camera frustums, every pixel that differs is the model's.
+    dt.evaluate("document.getElementById('splat-cameras').checked = false")
+    dt.evaluate("document.getElementById('sec-3d').scrollIntoView({block: 'start'})")
+    deadline = time.time() + TIMEOUT_S  # the depth sort runs in a worker: wait for it
+    while True:
+        wait_frames(dt, 2)
+        before = dt.evaluate(SPLAT_PIXELS)
+        if before["fraction"] > 0.01 or time.time() > deadline:
+            break
+    checks["splat_drawn_fraction"] = before["fraction"]
+
+    # One band, chosen with the wavelength slider by a real click near its left end.
+    dt.evaluate("(() => { const s = document.getElementById('splat-mode'); s.value = 'band';"
+                " s.dispatchEvent(new Event('input')); })()")
+    wait_frames(dt, 3)
+    band_mid = dt.evaluate(SPLAT_PIXELS)
+    slider_before = dt.evaluate("document.getElementById('splat-band').value")
+    left, top, width, height = dt.evaluate(CENTRE % '"#splat-band"')
+    dt.click(left + 0.03 * width, top + height / 2)
+    dt.wait_for("document.getElementById('splat-band').value !== %s" % json.dumps(slider_before),
+                "the 3D view's slider to move")
+    wait_frames(dt, 3)
+    band_low = dt.evaluate(SPLAT_PIXELS)
+    checks["splat_slider_moved"] = [slider_before, dt.evaluate("document.getElementById('splat-band').value")]
+    checks["splat_label"] = dt.evaluate("document.getElementById('splat-label').textContent")
+    checks["splat_recoloured"] = before["url"] != band_mid["url"] and band_mid["url"] != band_low["url"]
+
+    # A click on the most visible splat plots a spectrum.
+    left, top, width, height = dt.evaluate(CENTRE % '"#splat-canvas"')
+    x, y = band_low["best"]
+    dt.click(left + (x + 0.5) * width / band_low["size"][0], top + (y + 0.5) * height / band_low["size"][1])
+    dt.wait_for("window.ddhgsSplats.picks > 0", "a pick after the click")
+    checks["splat_pick"] = dt.evaluate("window.ddhgsSplats.pick")
+    checks["splat_spectrum_points"] = dt.evaluate(
+        "window.ddhgsSplats.spectrumChart.data.slice(1).map(s => s.filter(v => v !== null).length)")
+    checks["splat_pick_text"] = dt.evaluate("document.getElementById('splat-pick').textContent")
+    dt.evaluate("document.getElementById('splat-cameras').checked = true")
+    wait_frames(dt, 3)
+    dt.evaluate("window.scrollTo(0, 0)")
+    rect = dt.evaluate("(() => { const r = document.getElementById('sec-3d').getBoundingClientRect();"
+                       " return [r.left + window.scrollX, r.top + window.scrollY, r.width, r.height]; })()")
+    shot = dt.send("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": True,
+                                              "clip": {"x": rect[0], "y": rect[1], "width": rect[2],
+                                                       "height": rect[3], "scale": 1}})
+    pathlib.Path(screenshot).write_bytes(base64.b64decode(shot["data"]))
+    return checks
+
+
+def splat_ok(checks, bands):
+    pick = checks.get("splat_pick") or {}
+    return (checks["splat_drawn_fraction"] > 0.01 and checks["splat_recoloured"]
+            and checks["splat_slider_moved"][0] != checks["splat_slider_moved"][1]
+            and pick.get("gaussians", 0) > 0
+            and checks["splat_spectrum_points"] == [bands, bands])
+
+
 # Centre of an element in CSS pixels, scrolled into view first.
 CENTRE = """(() => { const e = document.querySelector(%s); e.scrollIntoView({block: 'center'});
   const r = e.getBoundingClientRect(); return [r.left, r.top, r.width, r.height]; })()"""
@@ -159,6 +254,8 @@ def run(chromium, index, screenshot, profile):
             raise RuntimeError("cannot open %s: %s" % (index, nav["errorText"]))
         dt.wait_for("window.ddhgsReady === true", "the report to finish building")
         checks["bands"] = dt.evaluate("window.DDHGS_REPORT.wavelengths_nm.length")
+        stem, dot, ext = screenshot.rpartition(".")
+        checks.update(check_splat_view(dt, stem + "_3d" + dot + ext))
 
         band_before = dt.evaluate(CANVAS_PIXELS % '"canvas-render"')
         slider_before = dt.evaluate("document.getElementById('band-slider').value")
@@ -197,6 +294,7 @@ def run(chromium, index, screenshot, profile):
         and all(n == checks["bands"] for n in checks["spectrum_points_per_series"])
         and len(checks["spectrum_points_per_series"]) >= 2
         and not checks["console_errors"]
+        and splat_ok(checks, checks["bands"])
     )
     checks["ok"] = ok
     return checks

@@ -8,9 +8,11 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstring>
 
 #include "io/atomic_file.h"
 #include "io/image.h"
+#include "io/ply.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -34,12 +36,33 @@ std::string last_line(std::string s) {
   return at == std::string::npos ? s : s.substr(at + 1);
 }
 
-// window.DDHGS_REPORT = {...}; -> the object.
-json read_report_data(const fs::path& report) {
-  std::string js = io::read_file(report / "assets" / "data.js");
-  const std::string prefix = "window.DDHGS_REPORT = ";
+// "window.NAME = {...};" -> the object.
+json read_script_object(const fs::path& script, const std::string& prefix) {
+  std::string js = io::read_file(script);
   EXPECT_EQ(js.rfind(prefix, 0), 0u);
   return json::parse(js.substr(prefix.size(), js.rfind(';') - prefix.size()));
+}
+
+json read_report_data(const fs::path& report) {
+  return read_script_object(report / "assets" / "data.js", "window.DDHGS_REPORT = ");
+}
+
+// RFC 4648 base64 (with padding) back to bytes.
+std::string base64_decode(const std::string& text) {
+  const std::string alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  uint32_t bits = 0;
+  int count = 0;
+  for (char c : text) {
+    if (c == '=') break;
+    bits = (bits << 6) | uint32_t(alphabet.find(c));
+    count += 6;
+    if (count >= 8) {
+      count -= 8;
+      out += char((bits >> count) & 0xff);
+    }
+  }
+  return out;
 }
 
 // Where the screenshot and a copy of the report stay after the test (the
@@ -90,12 +113,15 @@ TEST_F(ReportCli, WritesSelfContainedReportThatAgreesWithTheRun) {
   EXPECT_TRUE(contains(out, (report / "index.html").string())) << out;
   EXPECT_FALSE(fs::exists(run_->string() + "/report.tmp"));
 
-  // The binary's copies of the page and of uPlot are those under web/ (a
-  // stale src/eval/report_assets.cpp fails here: rerun web/embed.py).
+  // The binary's copies of the page and of the libraries are those under
+  // web/ (the build embeds them; a stale build fails here).
   const fs::path web = test::source_dir() / "web";
   for (auto [written, source] :
        {std::pair{"assets/report.js", "report/report.js"},
         {"assets/report.css", "report/report.css"},
+        {"assets/splat_view.js", "report/splat_view.js"},
+        {"assets/playcanvas.min.js", "vendor/playcanvas-2.23.3/playcanvas.min.js"},
+        {"assets/playcanvas.LICENSE.txt", "vendor/playcanvas-2.23.3/LICENSE"},
         {"assets/uPlot.iife.min.js", "vendor/uplot-1.6.32/uPlot.iife.min.js"},
         {"assets/uPlot.min.css", "vendor/uplot-1.6.32/uPlot.min.css"},
         {"assets/uPlot.LICENSE.txt", "vendor/uplot-1.6.32/LICENSE"}})
@@ -144,10 +170,28 @@ TEST_F(ReportCli, WritesSelfContainedReportThatAgreesWithTheRun) {
   EXPECT_EQ(viewer["width"], 40);
   EXPECT_EQ(viewer["cols"], 3);
   EXPECT_EQ(viewer["rows"], 2);
-  uintmax_t bytes = 0;
+  uintmax_t bytes = 0;  // all but the vendored libraries, the same for every report
   for (const auto& entry : fs::recursive_directory_iterator(report))
-    if (entry.is_regular_file()) bytes += entry.file_size();
+    if (entry.is_regular_file() && entry.path().filename() != "playcanvas.min.js" &&
+        entry.path().filename() != "uPlot.iife.min.js")
+      bytes += entry.file_size();
   EXPECT_LT(bytes, 1u << 20) << "a tiny run's report should stay small";
+
+  // The 3D view's model: every Gaussian of the run, centres as they are,
+  // band values from at most 6 basis vectors within 8-bit accuracy, one
+  // frustum per training view.
+  const json splats = read_script_object(report / "assets" / "splats.js", "window.DDHGS_SPLATS = ");
+  const io::GaussianPly ply = io::read_gaussian_ply(*run_ / "gaussians.ply");
+  ASSERT_EQ(splats["count"].get<int64_t>(), ply.means.size(0));
+  const std::string means = base64_decode(splats["means"].get<std::string>());
+  ASSERT_EQ(means.size(), size_t(ply.means.numel()) * 4);
+  EXPECT_EQ(std::memcmp(means.data(), ply.means.contiguous().data_ptr<float>(), means.size()), 0);
+  EXPECT_LE(splats["basis"]["vectors"].size(), size_t(kBands));
+  EXPECT_LT(splats["basis"]["rmse"].get<double>(), 1.0 / 255);
+  EXPECT_EQ(base64_decode(splats["basis"]["coefficients"].get<std::string>()).size(),
+            size_t(ply.means.size(0)) * splats["basis"]["vectors"].size());
+  EXPECT_EQ(splats["cameras"].size(), 9u);
+  EXPECT_EQ(splats["pseudo_rgb"]["weights"].size(), size_t(kBands));
 
   // --viewer-px area-averages the viewer's bands down (40 x 30 -> 20 x 15);
   // rerunning replaces the earlier report.
@@ -174,6 +218,7 @@ TEST_F(ReportCli, OpensInHeadlessChromiumAndRespondsToSliderAndClick) {
   ASSERT_EQ(ddhgs("report " + run_->string() + " --out " + report.string(), &out), 0) << out;
   const fs::path screenshot = test_output() / "report_cli_screenshot.png";
   fs::remove(screenshot);
+  fs::remove(test_output() / "report_cli_screenshot_3d.png");
   const fs::path profile = test::temp_dir("report_cli_chromium_profile");
   int rc = test::run_command(
       test::python() + " " + (test::source_dir() / "tests/app/report_browser_check.py").string() +
@@ -187,7 +232,14 @@ TEST_F(ReportCli, OpensInHeadlessChromiumAndRespondsToSliderAndClick) {
   EXPECT_EQ(checks["spectrum_points_per_series"], json::array({kBands, kBands, kBands})) << out;
   EXPECT_TRUE(checks["console_errors"].empty()) << out;
   EXPECT_GT(io::read_image(screenshot).size(0), 500) << screenshot;
-  std::cout << "screenshot: " << screenshot.string() << "\n";
+  // The 3D view: drawn, recoloured by its slider, a spectrum from a click.
+  EXPECT_GT(checks["splat_drawn_fraction"].get<double>(), 0.01) << out;
+  EXPECT_TRUE(checks["splat_recoloured"].get<bool>()) << out;
+  EXPECT_GT(checks["splat_pick"]["gaussians"].get<int>(), 0) << out;
+  EXPECT_EQ(checks["splat_spectrum_points"], json::array({kBands, kBands})) << out;
+  const fs::path screenshot_3d = test_output() / "report_cli_screenshot_3d.png";
+  EXPECT_GT(io::read_image(screenshot_3d).size(0), 300) << screenshot_3d;
+  std::cout << "screenshots: " << screenshot.string() << ", " << screenshot_3d.string() << "\n";
 }
 
 TEST_F(ReportCli, BadInputsGiveOneClearLineAndTouchNothing) {

@@ -225,9 +225,23 @@ TEST(Colour, BadInputsThrow) {
   EXPECT_THROW(pseudo_rgb(cube, {}, options), Error);  // 3 columns for 4 bands
   options.band_indices = {0, 1, 9};
   EXPECT_THROW(pseudo_rgb(cube, {}, options), Error);  // index out of range
-  // A 3-band cube without wavelengths is RGB already.
+  // A 3-band cube without wavelengths, or with an RGB dataset's (R, G, B at
+  // 610, 550, 465 nm: decreasing), is RGB already.
   auto rgb = torch::rand({2, 2, 3});
   EXPECT_LT((pseudo_rgb(rgb, {}) - rgb).abs().max().item<float>(), 1e-6);
+  EXPECT_LT((pseudo_rgb(rgb, rgb_channel_wavelengths_nm()) - rgb).abs().max().item<float>(), 1e-6);
+  EXPECT_TRUE(is_rgb({}, 3));
+  EXPECT_FALSE(is_rgb({465, 550, 610}, 3));  // a 3-band spectral camera
+  EXPECT_FALSE(is_rgb({}, 4));
+}
+
+TEST(PseudoRgb, CieMapIsTheLinearPartOfPseudoRgb) {
+  const std::vector<double> nm = {420, 480, 540, 600, 660, 720};
+  auto cube = torch::rand({3, 2, 6}, torch::kFloat64) * 0.6 + 0.2;
+  auto linear = cube.reshape({6, 6}).matmul(cie_linear_srgb_map(nm, Illuminant::D65));
+  auto expected = srgb_encode(linear.clamp(0, 1)).reshape({3, 2, 3});
+  EXPECT_LT((pseudo_rgb(cube, nm).to(torch::kFloat64) - expected).abs().max().item<double>(), 1e-6);
+  EXPECT_FALSE(cie_linear_srgb_map({900, 1000}, Illuminant::D65).any().item<bool>());
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
-// The ddhgs report page: builds tables, charts (uPlot) and the spectral
-// viewer from window.DDHGS_REPORT (assets/data.js) and the per-view band
-// atlases in window.DDHGS_VIEWER_DATA (assets/viewer/*.js). Data arrive as
-// <script src> files because a page opened from disk cannot fetch() files.
+// The ddhgs report page: builds tables, charts (uPlot), the 3D view
+// (assets/splat_view.js) and the spectral viewer from window.DDHGS_REPORT
+// (assets/data.js) and the per-view band atlases in window.DDHGS_VIEWER_DATA
+// (assets/viewer/*.js). Data arrive as <script src> files because a page
+// opened from disk cannot fetch() files.
 "use strict";
 
 (function () {
@@ -260,6 +261,16 @@
     return selectView();
   }
 
+  // The 3D view (assets/splat_view.js); a browser without WebGL 2 gets a note
+  // instead, and the rest of the report still works.
+  function splatSection() {
+    try {
+      window.ddhgsSplatView(R, window.DDHGS_SPLATS, { el: el, chart: chart });
+    } catch (e) {
+      $("splat-note").textContent = "The 3D view needs WebGL 2, which this browser did not provide (" + e.message + ").";
+    }
+  }
+
   function summarySection() {
     $("data-summary").appendChild(keyValueTable(R.data_summary));
     if (R.train_summary) $("train-summary").appendChild(keyValueTable(R.train_summary));
@@ -276,6 +287,7 @@
     spectralSection();
     figuresSection();
     summarySection();
+    splatSection();
     await viewerSection();
     window.ddhgsReady = true;
   }
