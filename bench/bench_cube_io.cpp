@@ -5,7 +5,7 @@
 
 #include <filesystem>
 
-#include "io/cube.h"
+#include "io/cube/cube.h"
 
 namespace {
 namespace fs = std::filesystem;

@@ -12,7 +12,7 @@
 #include "core/log.h"
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
 #include "train/config.h"

@@ -9,8 +9,8 @@
 #include "app/trained_run.h"
 #include "core/error.h"
 #include "eval/rgb_export.h"
-#include "io/ply.h"
-#include "io/splat.h"
+#include "io/ply/ply.h"
+#include "io/splat/splat.h"
 
 namespace ddhgs::app {
 namespace {

@@ -5,8 +5,8 @@
 #include <iostream>
 
 #include "app/registry.h"
-#include "io/dataset.h"
-#include "io/scene_report.h"
+#include "io/scene/scene.h"
+#include "io/scene/scene_report.h"
 
 namespace ddhgs::app {
 namespace {

@@ -6,14 +6,15 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/threads.h"
-#include "io/sfm.h"
+#include "process/process.h"
+#include "process/pseudo_rgb_images.h"
 
 namespace ddhgs::app {
 namespace {
 
 struct ProcessArgs {
   std::string cubes_dir, out, pseudo_rgb = "cie", wl_range, poses;
-  io::ColmapOptions colmap;
+  process::ColmapOptions colmap;
   bool skip_colmap = false, force = false;
 };
 
@@ -48,17 +49,18 @@ Action setup(CLI::App& parent) {
     core::require(args->skip_colmap == !args->poses.empty(),
                   args->skip_colmap ? "--skip-colmap: expected --poses FILE with the poses"
                                     : "--poses: only used with --skip-colmap");
-    io::ProcessOptions options;
+    process::ProcessOptions options;
     options.cubes_dir = args->cubes_dir;
     options.out = args->out;
     options.pseudo_rgb_spec = args->pseudo_rgb;
-    options.pseudo_rgb = io::parse_sfm_pseudo_rgb(args->pseudo_rgb);
-    if (!args->wl_range.empty()) options.wavelengths = io::parse_wavelength_range(args->wl_range);
+    options.pseudo_rgb = process::parse_sfm_pseudo_rgb(args->pseudo_rgb);
+    if (!args->wl_range.empty())
+      options.wavelengths = process::parse_wavelength_range(args->wl_range);
     options.colmap = args->colmap;
     options.colmap.threads = core::thread_count();
     options.poses = args->poses;
     options.force = args->force;
-    io::ProcessResult result = io::process_cubes(options);
+    process::ProcessResult result = process::process_cubes(options);
     core::log_info("process: " + std::to_string(result.registered) + " of " +
                    std::to_string(result.views) + " views posed, " + std::to_string(result.points) +
                    " points -> " + args->out + " in " + core::format_duration(result.seconds));

@@ -8,10 +8,10 @@
 #include "core/colour.h"
 #include "core/error.h"
 #include "core/log.h"
-#include "io/camera_json.h"
-#include "io/cube.h"
-#include "io/image.h"
-#include "io/ply.h"
+#include "io/cube/cube.h"
+#include "io/image/image.h"
+#include "io/ply/ply.h"
+#include "io/transforms/camera_json.h"
 #include "render/rasterize.h"
 
 namespace ddhgs::app {

@@ -7,7 +7,7 @@
 #include "app/trained_run.h"
 #include "core/error.h"
 #include "eval/report.h"
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 #include "io/files/folder_lock.h"
 #include "train/run_folder.h"
 

@@ -4,8 +4,8 @@
 
 #include "core/error.h"
 #include "core/log.h"
-#include "io/atomic_file.h"
-#include "io/ply.h"
+#include "io/files/atomic_file.h"
+#include "io/ply/ply.h"
 #include "train/config.h"
 #include "train/diffusion_term.h"
 #include "train/run_folder.h"

@@ -11,8 +11,8 @@
 #include <optional>
 #include <string>
 
-#include "io/dataset.h"
-#include "io/ply.h"
+#include "io/ply/ply.h"
+#include "io/scene/scene.h"
 #include "model/diffusion.h"
 #include "model/gaussians.h"
 

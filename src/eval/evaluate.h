@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "eval/metrics.h"
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 #include "model/gaussians.h"
 
 namespace ddhgs::eval {

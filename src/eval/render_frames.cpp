@@ -5,8 +5,8 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "eval/orbit.h"
-#include "io/cube.h"
-#include "io/image.h"
+#include "io/cube/cube.h"
+#include "io/image/image.h"
 
 namespace ddhgs::eval {
 namespace fs = std::filesystem;

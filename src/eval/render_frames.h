@@ -10,7 +10,7 @@
 
 #include "core/camera.h"
 #include "eval/figures.h"
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 #include "model/gaussians.h"
 
 namespace ddhgs::eval {

@@ -11,10 +11,10 @@
 #include "eval/report_assets.h"
 #include "eval/report_splats.h"
 #include "eval/report_views.h"
-#include "io/atomic_file.h"
-#include "io/cube.h"
+#include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
 #include "io/files/output_folder.h"
-#include "io/image.h"
+#include "io/image/image.h"
 
 namespace ddhgs::eval {
 namespace fs = std::filesystem;

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 #include "model/gaussians.h"
 
 namespace ddhgs::eval {

@@ -15,7 +15,7 @@
 
 #include <vector>
 
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 #include "model/gaussians.h"
 
 namespace ddhgs::eval {

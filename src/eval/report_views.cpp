@@ -5,8 +5,8 @@
 #include <cstdio>
 
 #include "eval/colormap.h"
-#include "io/atomic_file.h"
-#include "io/image.h"
+#include "io/files/atomic_file.h"
+#include "io/image/image.h"
 
 namespace ddhgs::eval {
 namespace fs = std::filesystem;

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "eval/colormap.h"
-#include "io/ply.h"
+#include "io/ply/ply.h"
 
 namespace ddhgs::eval {
 

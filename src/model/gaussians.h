@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "core/camera.h"
-#include "io/ply.h"
+#include "io/ply/ply.h"
 #include "render/rasterize.h"
 
 namespace ddhgs::model {

@@ -6,12 +6,12 @@
 #include "core/colour.h"
 #include "core/error.h"
 #include "core/log.h"
-#include "io/atomic_file.h"
-#include "io/cube.h"
+#include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
 #include "io/files/output_folder.h"
-#include "io/image.h"
-#include "io/ply.h"
-#include "io/transforms.h"
+#include "io/image/image.h"
+#include "io/ply/ply.h"
+#include "io/transforms/transforms.h"
 #include "synth/render.h"
 
 namespace ddhgs::synth {

@@ -7,7 +7,7 @@
 #include <set>
 
 #include "core/error.h"
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 
 namespace ddhgs::train {
 

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 
 namespace ddhgs::train {
 

@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 
 namespace ddhgs::train {
 

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 #include "model/gaussians.h"
 
 namespace ddhgs::train {

@@ -8,8 +8,8 @@
 
 #include "core/error.h"
 #include "core/log.h"
-#include "io/atomic_file.h"
-#include "io/ply.h"
+#include "io/files/atomic_file.h"
+#include "io/ply/ply.h"
 #include "model/densify.h"
 #include "train/config.h"
 #include "train/init.h"

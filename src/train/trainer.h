@@ -13,7 +13,7 @@
 #include <memory>
 #include <vector>
 
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 #include "model/gaussians.h"
 #include "model/wavelength_encoder.h"
 #include "train/checkpoint.h"

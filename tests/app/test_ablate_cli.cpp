@@ -8,7 +8,7 @@
 #include <cmath>
 #include <fstream>
 
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

@@ -8,11 +8,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include "io/atomic_file.h"
-#include "io/cube.h"
-#include "io/dataset.h"
-#include "io/image.h"
-#include "io/ply.h"
+#include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
+#include "io/image/image.h"
+#include "io/ply/ply.h"
+#include "io/scene/scene.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

@@ -9,10 +9,10 @@
 #include <regex>
 
 #include "core/colour.h"
-#include "io/camera_json.h"
-#include "io/cube.h"
-#include "io/dataset.h"
-#include "io/image.h"
+#include "io/cube/cube.h"
+#include "io/image/image.h"
+#include "io/scene/scene.h"
+#include "io/transforms/camera_json.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

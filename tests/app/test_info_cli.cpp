@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <limits>
 
-#include "io/atomic_file.h"
-#include "io/cube.h"
-#include "io/transforms.h"
+#include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
+#include "io/transforms/transforms.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

@@ -14,8 +14,8 @@
 #include <fstream>
 
 #include "core/log.h"
-#include "io/atomic_file.h"
-#include "io/dataset.h"
+#include "io/files/atomic_file.h"
+#include "io/scene/scene.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

@@ -4,9 +4,9 @@
 
 #include <fstream>
 
-#include "io/cube.h"
-#include "io/image.h"
-#include "io/ply.h"
+#include "io/cube/cube.h"
+#include "io/image/image.h"
+#include "io/ply/ply.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

@@ -10,9 +10,9 @@
 #include <cmath>
 #include <cstring>
 
-#include "io/atomic_file.h"
-#include "io/image.h"
-#include "io/ply.h"
+#include "io/files/atomic_file.h"
+#include "io/image/image.h"
+#include "io/ply/ply.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

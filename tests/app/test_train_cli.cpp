@@ -7,8 +7,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "io/atomic_file.h"
-#include "io/cube.h"
+#include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

@@ -11,10 +11,10 @@
 #include "core/error.h"
 #include "eval/evaluate.h"
 #include "eval/render_frames.h"
-#include "io/atomic_file.h"
-#include "io/cube.h"
-#include "io/image.h"
-#include "io/transforms.h"
+#include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
+#include "io/image/image.h"
+#include "io/transforms/transforms.h"
 #include "support/test_support.h"
 
 namespace ddhgs::eval {

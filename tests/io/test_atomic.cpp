@@ -6,7 +6,7 @@
 
 #include "core/error.h"
 #include "cube_test_util.h"
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 
 namespace ddhgs::io {
 namespace {

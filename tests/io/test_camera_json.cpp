@@ -4,7 +4,7 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "io/camera_json.h"
+#include "io/transforms/camera_json.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

@@ -7,8 +7,8 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "io/atomic_file.h"
-#include "io/colmap.h"
+#include "io/colmap/colmap.h"
+#include "io/files/atomic_file.h"
 #include "support/error_text.h"
 #include "support/test_support.h"
 

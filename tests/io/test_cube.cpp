@@ -2,8 +2,8 @@
 #include <gtest/gtest.h>
 
 #include "cube_test_util.h"
-#include "io/cube.h"
-#include "io/cube_formats.h"
+#include "io/cube/cube.h"
+#include "io/cube/cube_formats.h"
 
 namespace ddhgs::io {
 namespace {

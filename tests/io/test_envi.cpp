@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "cube_test_util.h"
-#include "io/cube.h"
+#include "io/cube/cube.h"
 
 namespace ddhgs::io {
 namespace {

@@ -5,7 +5,7 @@
 
 #include "core/error.h"
 #include "cube_test_util.h"
-#include "io/cube.h"
+#include "io/cube/cube.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

@@ -10,7 +10,7 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
 #include "io/files/stale_files.h"

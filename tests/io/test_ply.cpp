@@ -8,7 +8,7 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "io/ply.h"
+#include "io/ply/ply.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

@@ -5,8 +5,8 @@
 #include <cstring>
 
 #include "core/error.h"
-#include "io/atomic_file.h"
-#include "io/splat.h"
+#include "io/files/atomic_file.h"
+#include "io/splat/splat.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

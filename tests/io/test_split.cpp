@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <sstream>
 
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

@@ -4,7 +4,7 @@
 #include <tiffio.h>
 
 #include "cube_test_util.h"
-#include "io/cube.h"
+#include "io/cube/cube.h"
 
 namespace ddhgs::io {
 namespace {

@@ -5,8 +5,8 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "io/atomic_file.h"
-#include "io/transforms.h"
+#include "io/files/atomic_file.h"
+#include "io/transforms/transforms.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {

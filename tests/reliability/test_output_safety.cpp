@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <fstream>
 
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 #include "support/test_support.h"
 
 namespace ddhgs {

@@ -8,7 +8,7 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "io/dataset.h"
+#include "io/scene/scene.h"
 #include "support/test_support.h"
 #include "synth/generate.h"
 #include "synth/render.h"

@@ -3,7 +3,7 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 #include "support/test_support.h"
 #include "train/checkpoint.h"
 #include "train/losses.h"

@@ -7,7 +7,7 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "io/atomic_file.h"
+#include "io/files/atomic_file.h"
 #include "support/error_text.h"
 #include "support/test_support.h"
 #include "train/config.h"

@@ -1,0 +1,167 @@
+#include "io/colmap/colmap.h"
+
+#include <cmath>
+
+#include "core/error.h"
+#include "io/ply/ply.h"
+
+namespace ddhgs::io {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct ModelSpec {
+  int id;
+  const char* name;
+  size_t params;
+  bool supported;
+};
+
+// COLMAP's model table (src/colmap/sensor/models.h). Fisheye and thin-prism
+// models cannot be expressed by core::Intrinsics' OpenCV k1 k2 p1 p2.
+constexpr ModelSpec kModels[] = {
+    {0, "SIMPLE_PINHOLE", 3, true},
+    {1, "PINHOLE", 4, true},
+    {2, "SIMPLE_RADIAL", 4, true},
+    {3, "RADIAL", 5, true},
+    {4, "OPENCV", 8, true},
+    {5, "OPENCV_FISHEYE", 8, false},
+    {6, "FULL_OPENCV", 12, false},
+    {7, "FOV", 5, false},
+    {8, "SIMPLE_RADIAL_FISHEYE", 4, false},
+    {9, "RADIAL_FISHEYE", 5, false},
+    {10, "THIN_PRISM_FISHEYE", 12, false},
+};
+
+const char* kSupportedList = "SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV";
+
+const ModelSpec& supported_spec(const ModelSpec* spec, const std::string& shown,
+                                const std::string& origin) {
+  if (!spec || !spec->supported)
+    throw core::Error(origin + ": unsupported camera model " + shown + " (expected " +
+                      kSupportedList + ")");
+  return *spec;
+}
+
+const ModelSpec* spec_by_name(const std::string& model) {
+  for (const auto& s : kModels)
+    if (model == s.name) return &s;
+  return nullptr;
+}
+
+}  // namespace
+
+size_t colmap_param_count(const std::string& model, const std::string& origin) {
+  return supported_spec(spec_by_name(model), model, origin).params;
+}
+
+std::string colmap_model_name(int model_id, const std::string& origin) {
+  const ModelSpec* spec = nullptr;
+  for (const auto& s : kModels)
+    if (s.id == model_id) spec = &s;
+  std::string shown = spec ? std::string(spec->name) : "id " + std::to_string(model_id);
+  return supported_spec(spec, shown, origin).name;
+}
+
+int colmap_model_id(const std::string& model, const std::string& origin) {
+  return supported_spec(spec_by_name(model), model, origin).id;
+}
+
+std::optional<fs::path> find_colmap_model(const fs::path& root) {
+  for (const char* sub : {"sparse/0", "colmap/sparse/0", "sparse"}) {
+    fs::path dir = root / sub;
+    if (fs::exists(dir / "cameras.bin") || fs::exists(dir / "cameras.txt")) return dir;
+  }
+  return std::nullopt;
+}
+
+ColmapModel read_colmap(const fs::path& dir) {
+  bool binary = true;
+  for (const char* name : {"cameras.bin", "images.bin"}) binary = binary && fs::exists(dir / name);
+  if (binary) return read_colmap_binary(dir);
+  core::require(fs::exists(dir / "cameras.txt") && fs::exists(dir / "images.txt"), dir,
+                "expected a COLMAP model: cameras.bin and images.bin, or cameras.txt and "
+                "images.txt");
+  return read_colmap_text(dir);
+}
+
+void check_colmap_model(const ColmapModel& model) {
+  for (const auto& [id, camera] : model.cameras) {
+    std::string origin = "COLMAP camera " + std::to_string(id);
+    core::require(camera.params.size() == colmap_param_count(camera.model, origin),
+                  origin + ": parameter count does not match model " + camera.model);
+  }
+  for (const auto& image : model.images)
+    core::require(image.xys.size() == image.point3d_ids.size(),
+                  "COLMAP image " + image.name + ": keypoints and point ids differ in count");
+}
+
+core::Intrinsics colmap_intrinsics(const ColmapCamera& camera) {
+  std::string origin = "COLMAP camera " + std::to_string(camera.camera_id);
+  size_t expected = colmap_param_count(camera.model, origin);
+  if (camera.params.size() != expected)
+    throw core::Error(origin + ": model " + camera.model + " needs " + std::to_string(expected) +
+                      " parameters, found " + std::to_string(camera.params.size()));
+  const auto& p = camera.params;
+  core::Intrinsics k;
+  k.width = int(camera.width);
+  k.height = int(camera.height);
+  if (camera.model == "SIMPLE_PINHOLE" || camera.model == "SIMPLE_RADIAL" ||
+      camera.model == "RADIAL") {
+    k.fx = k.fy = p[0];
+    k.cx = p[1];
+    k.cy = p[2];
+    if (camera.model != "SIMPLE_PINHOLE") k.k1 = p[3];
+    if (camera.model == "RADIAL") k.k2 = p[4];
+  } else {  // PINHOLE, OPENCV
+    k.fx = p[0];
+    k.fy = p[1];
+    k.cx = p[2];
+    k.cy = p[3];
+    if (camera.model == "OPENCV") {
+      k.k1 = p[4];
+      k.k2 = p[5];
+      k.p1 = p[6];
+      k.p2 = p[7];
+    }
+  }
+  if (!(k.fx > 0 && k.fy > 0) || k.width < 1 || k.height < 1)
+    throw core::Error(origin + ": expected positive focal lengths and image size");
+  return k;
+}
+
+core::Camera colmap_camera(const ColmapModel& model, const ColmapImage& image) {
+  auto it = model.cameras.find(image.camera_id);
+  if (it == model.cameras.end())
+    throw core::Error("COLMAP image " + image.name + ": camera " + std::to_string(image.camera_id) +
+                      " is not in cameras");
+  const auto& q = image.qvec;
+  double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  if (!(norm > 1e-12) || !std::isfinite(norm))
+    throw core::Error("COLMAP image " + image.name + ": quaternion is zero or not finite");
+  core::Camera camera;
+  camera.intrinsics = colmap_intrinsics(it->second);
+  camera.world_to_camera =
+      core::Mat4::from(core::quat_to_rotation(q[0], q[1], q[2], q[3]), image.tvec);
+  return camera;
+}
+
+PointCloud colmap_points(const ColmapModel& model) {
+  PointCloud cloud;
+  const int64_t n = int64_t(model.points.size());
+  if (n == 0) return cloud;
+  cloud.xyz = torch::empty({n, 3}, torch::kFloat32);
+  cloud.rgb = torch::empty({n, 3}, torch::kUInt8);
+  auto xyz = cloud.xyz.accessor<float, 2>();
+  auto rgb = cloud.rgb.accessor<uint8_t, 2>();
+  for (int64_t i = 0; i < n; ++i) {
+    const auto& p = model.points[size_t(i)];
+    xyz[i][0] = float(p.xyz.x);
+    xyz[i][1] = float(p.xyz.y);
+    xyz[i][2] = float(p.xyz.z);
+    for (int c = 0; c < 3; ++c) rgb[i][c] = p.rgb[size_t(c)];
+  }
+  return cloud;
+}
+
+}  // namespace ddhgs::io

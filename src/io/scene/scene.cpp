@@ -1,0 +1,180 @@
+// Scene: lazy, cached access to the views of a loaded dataset, and the split.
+//
+// Views are kept in their stored sample type (a BaySpec scene is 20 GB as
+// uint8, 80 GB as float). When a view is area-averaged or bands are binned,
+// the averages are rounded back to the stored integer type: the rounding
+// error (half a quantisation step) is no larger than the file's own.
+#include <algorithm>
+#include <cmath>
+
+#include "core/colour.h"
+#include "core/error.h"
+#include "io/scene/scene.h"
+
+namespace ddhgs::io {
+namespace fs = std::filesystem;
+
+namespace {
+
+// Float samples in file units -> the stored type, rounding and clamping integers.
+torch::Tensor to_stored(const torch::Tensor& values, SampleType type) {
+  switch (type) {
+    case SampleType::F16:
+      return values.to(torch::kHalf);
+    case SampleType::F32:
+      return values.to(torch::kFloat);
+    case SampleType::F64:
+      return values.to(torch::kDouble);
+    case SampleType::U8:
+      return values.round().clamp(0, 255).to(torch::kUInt8);
+    case SampleType::U16:
+      // LibTorch has no uint16: keep the 16 bits in an int16 (see cube.h).
+      return values.round().clamp(0, 65535).to(torch::kInt32).to(torch::kInt16);
+    case SampleType::I16:
+      return values.round().clamp(-32768, 32767).to(torch::kInt16);
+    case SampleType::I32:
+      return values.round().to(torch::kInt32);
+  }
+  return values;
+}
+
+bool is_identity(const std::vector<int>& index, int64_t bands) {
+  if (int64_t(index.size()) != bands) return false;
+  for (size_t i = 0; i < index.size(); ++i)
+    if (index[i] != int(i)) return false;
+  return true;
+}
+
+}  // namespace
+
+std::vector<double> rgb_wavelengths_nm() {
+  return core::rgb_channel_wavelengths_nm();
+}
+
+void hypernerf_split(int n, std::vector<int>& train, std::vector<int>& test) {
+  train.clear();
+  test.clear();
+  if (n <= 0) return;
+  // Same double arithmetic as math.ceil(n * 0.9) and np.linspace(...).astype(int).
+  int k = int(std::ceil(n * 0.9));
+  std::vector<bool> is_train(size_t(n), false);
+  double step = k > 1 ? double(n - 1) / double(k - 1) : 0;
+  for (int i = 0; i < k; ++i) {
+    double v = (i == k - 1 && k > 1) ? double(n - 1) : double(i) * step;
+    is_train[size_t(std::floor(v))] = true;
+  }
+  for (int i = 0; i < n; ++i) (is_train[size_t(i)] ? train : test).push_back(i);
+}
+
+void require_bands(const fs::path& path, int64_t bands, int64_t expected) {
+  if (bands != expected)
+    throw core::Error(path, "has " + std::to_string(bands) + " bands, expected " +
+                                std::to_string(expected) + " like the scene's other views");
+}
+
+int area_factor(const fs::path& path, int64_t height, int64_t width, const core::Intrinsics& target,
+                int downscale) {
+  if (height == target.height && width == target.width) return 1;
+  if (downscale > 1 && height / downscale == target.height && width / downscale == target.width)
+    return downscale;
+  throw core::Error(path, "is " + std::to_string(width) + "x" + std::to_string(height) +
+                              " pixels, but its camera expects " + std::to_string(target.width) +
+                              "x" + std::to_string(target.height) +
+                              (downscale > 1 ? " (or " + std::to_string(downscale) +
+                                                   " times that, to be area-averaged)"
+                                             : ""));
+}
+
+bool Scene::has_clean() const {
+  return std::any_of(views.begin(), views.end(),
+                     [](const View& v) { return !v.clean_path.empty(); });
+}
+
+size_t Scene::view_bytes() const {
+  size_t most = 0;
+  for (const auto& v : views)
+    most = std::max(most, size_t(v.camera.intrinsics.width) * size_t(v.camera.intrinsics.height));
+  return most * size_t(bands()) * bytes_per_sample(stored_type);
+}
+
+Cube Scene::load_view(const fs::path& path, const core::Intrinsics& target) const {
+  Cube cube = read_cube(path, CubeReadOptions{options.layout});
+  require_bands(path, cube.bands(), source_bands);
+  int64_t h = cube.height(), w = cube.width();
+  int d = area_factor(path, h, w, target, options.downscale);
+  bool reduce = d > 1;
+
+  torch::Tensor data = cube.data;
+  if (!is_identity(band_index, source_bands))
+    data = data.index_select(
+        2, torch::tensor(std::vector<int64_t>(band_index.begin(), band_index.end())));
+  int bin = std::max(options.bin, 1);
+  if (bin > 1 || reduce || cube.ignore_value) {
+    // Average in file units; ignored samples count as 0, as cube_to_float maps them.
+    Cube selected{data, cube.type, {}, cube.ignore_value};
+    torch::Tensor values = cube_to_float(selected, 1.0);
+    int64_t kept = values.size(2);
+    if (bin > 1) values = values.reshape({h, w, kept / bin, bin}).mean(3);
+    if (reduce) {
+      int64_t th = target.height, tw = target.width;
+      values = values.slice(0, 0, th * d)
+                   .slice(1, 0, tw * d)
+                   .reshape({th, d, tw, d, values.size(2)})
+                   .mean({1, 3});
+    }
+    data = to_stored(values, cube.type);
+  }
+  Cube out;
+  out.data = data.contiguous();
+  out.type = cube.type;
+  return out;
+}
+
+Cube Scene::cached_view(const fs::path& path, const core::Intrinsics& target) const {
+  std::string key = path.string();
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = cache_.find(key);
+    if (it != cache_.end()) {
+      lru_.splice(lru_.begin(), lru_, std::find(lru_.begin(), lru_.end(), key));
+      return it->second;
+    }
+  }
+  // Decoding runs unlocked so threads load different views in parallel; a
+  // view loaded twice at once is stored once.
+  Cube cube = load_view(path, target);
+  size_t budget = options.cache_mb * (size_t(1) << 20);
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (cube.bytes() > budget || cache_.count(key)) return cube;
+  while (cached_bytes_ + cube.bytes() > budget && !lru_.empty()) {
+    auto victim = cache_.find(lru_.back());
+    cached_bytes_ -= victim->second.bytes();
+    cache_.erase(victim);
+    lru_.pop_back();
+  }
+  cache_.emplace(key, cube);
+  lru_.push_front(key);
+  cached_bytes_ += cube.bytes();
+  return cube;
+}
+
+torch::Tensor Scene::image(int view) const {
+  core::require(view >= 0 && view < int(views.size()), root,
+                "view index " + std::to_string(view) + " out of range");
+  const View& v = views[size_t(view)];
+  Cube cube = cached_view(v.data_path, v.camera.intrinsics);
+  return cube_to_float(cube, cube.type == stored_type ? scale : 0);
+}
+
+torch::Tensor Scene::clean_image(int view) const {
+  core::require(view >= 0 && view < int(views.size()), root,
+                "view index " + std::to_string(view) + " out of range");
+  const View& v = views[size_t(view)];
+  if (v.clean_path.empty()) return {};
+  Cube cube = cached_view(v.clean_path, v.camera.intrinsics);
+  // A clean cube stored in another type (e.g. float beside uint8 noisy
+  // cubes) is scaled by its own type's default.
+  return cube_to_float(cube, cube.type == stored_type ? scale : 0);
+}
+
+}  // namespace ddhgs::io

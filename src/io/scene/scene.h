@@ -1,0 +1,105 @@
+// A scene on disk, loaded lazily: cameras, views, wavelengths, points, split.
+//
+// Layouts (detected from what is on disk):
+//  - transforms.json (nerfstudio / Hyper-NeRF), cubes from hyperspectral_file_path
+//  - COLMAP model (sparse/0 or colmap/sparse/0, .bin or .txt) with a folder of
+//    cubes matched to the images by file stem
+//  - either layout with only RGB images: a 3-band scene
+// Clean ground truth (synthetic scenes): a file of the same name under clean/
+// in the dataset root, e.g. hyperspectral/r_003.npy -> clean/r_003.npy.
+#pragma once
+#include <torch/torch.h>
+
+#include <cstddef>
+#include <filesystem>
+#include <list>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "core/camera.h"
+#include "io/cube/cube.h"
+#include "io/ply/ply.h"
+
+namespace ddhgs::io {
+
+struct LoadOptions {
+  int downscale = 1;       // area averaging; uses images_<d>/ folders when present
+  bool rgb = false;        // load the RGB file_path images as a 3-band scene
+  double band_min_nm = 0;  // keep bands with wavelength in [min, max]
+  double band_max_nm = 1e9;
+  int bin = 1;             // average groups of this many adjacent bands
+  size_t cache_mb = 4096;  // memory budget for decoded views
+  BandLayout layout = BandLayout::Auto;
+  std::optional<double> scale;  // overrides the dataset's integer scale
+};
+
+struct View {
+  std::string name;                  // file stem
+  core::Camera camera;               // at the loaded (downscaled) resolution
+  std::filesystem::path data_path;   // cube, or image for RGB scenes
+  std::filesystem::path clean_path;  // empty when there is no clean ground truth
+};
+
+class Scene {
+ public:
+  std::filesystem::path root;
+  std::string layout;  // "transforms.json", "colmap"
+  std::vector<View> views;
+  std::vector<int> train, test;        // indices into views; disjoint
+  std::vector<double> wavelengths_nm;  // one per loaded band
+  PointCloud points;                   // xyz undefined when the dataset has none
+  SampleType stored_type = SampleType::F32;
+  double scale = 1;                   // divisor applied to stored samples
+  std::vector<std::string> warnings;  // problems found while loading
+
+  int64_t bands() const { return int64_t(wavelengths_nm.size()); }
+  bool has_clean() const;
+  // float32 [H, W, N] in [0, 1] at the loaded resolution and bands.
+  torch::Tensor image(int view) const;
+  // Clean ground truth, same shape; undefined tensor when there is none.
+  torch::Tensor clean_image(int view) const;
+  // Bytes one view occupies in the cache (stored type, loaded size).
+  size_t view_bytes() const;
+
+  // Internal: set by load_scene.
+  LoadOptions options;
+  std::vector<int> band_index;  // source band of each loaded band before binning
+  int64_t source_bands = 0;     // bands of every cube file before selection
+
+ private:
+  // The cube at path, reduced to target's size (area averaging when the file
+  // is at full resolution), band-selected and binned, in its stored type.
+  Cube load_view(const std::filesystem::path& path, const core::Intrinsics& target) const;
+  // Cached load_view; evicts least recently used entries beyond cache_mb.
+  Cube cached_view(const std::filesystem::path& path, const core::Intrinsics& target) const;
+  mutable std::mutex mutex_;
+  mutable std::list<std::string> lru_;  // most recently used first
+  mutable std::unordered_map<std::string, Cube> cache_;
+  mutable size_t cached_bytes_ = 0;
+};
+
+// Detects the layout and reads metadata (not the cubes). Throws core::Error on
+// a malformed dataset; missing frames are skipped with a warning.
+std::unique_ptr<Scene> load_scene(const std::filesystem::path& dir,
+                                  const LoadOptions& options = {});
+
+// The Hyper-NeRF rule: train = floor(linspace(0, n-1, ceil(0.9 n))), test = rest.
+// Computed in double exactly as numpy/nerfstudio do, so indices match theirs.
+void hypernerf_split(int n, std::vector<int>& train, std::vector<int>& test);
+
+// Area-averaging factor that brings a cube of height x width pixels to the
+// size of target: 1 when it already has it (e.g. from an images_<d>/ folder),
+// downscale when it is at full resolution; otherwise core::Error naming path.
+int area_factor(const std::filesystem::path& path, int64_t height, int64_t width,
+                const core::Intrinsics& target, int downscale);
+
+// core::Error naming path when a cube's band count differs from the scene's.
+void require_bands(const std::filesystem::path& path, int64_t bands, int64_t expected);
+
+// Wavelengths (nm) given to the three bands of an RGB scene.
+std::vector<double> rgb_wavelengths_nm();
+
+}  // namespace ddhgs::io

@@ -1,0 +1,242 @@
+#include "io/transforms/transforms.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+
+#include "core/error.h"
+#include "io/files/atomic_file.h"
+
+namespace ddhgs::io {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+// Every lookup names the file and the JSON location, so a user can fix the
+// file from the message alone (nlohmann's own type errors name neither).
+class Reader {
+ public:
+  explicit Reader(fs::path path) : path_(std::move(path)) {}
+
+  [[noreturn]] void fail(const std::string& where, const std::string& problem) const {
+    throw core::Error(path_, where + ": " + problem);
+  }
+
+  const json* find(const json& object, const std::string& key) const {
+    auto it = object.find(key);
+    return it == object.end() || it->is_null() ? nullptr : &*it;
+  }
+
+  double number(const json& value, const std::string& where) const {
+    if (!value.is_number()) fail(where, "expected a number, found " + type_name(value));
+    double v = value.get<double>();
+    if (!std::isfinite(v)) fail(where, "expected a finite number");
+    return v;
+  }
+
+  std::string string(const json& value, const std::string& where) const {
+    if (!value.is_string()) fail(where, "expected a string, found " + type_name(value));
+    return value.get<std::string>();
+  }
+
+  const json& array(const json& value, const std::string& where) const {
+    if (!value.is_array()) fail(where, "expected an array, found " + type_name(value));
+    return value;
+  }
+
+  std::vector<std::string> strings(const json& value, const std::string& where) const {
+    std::vector<std::string> out;
+    const json& list = array(value, where);
+    for (size_t i = 0; i < list.size(); ++i)
+      out.push_back(string(list[i], where + "[" + std::to_string(i) + "]"));
+    return out;
+  }
+
+  // A key given per frame wins over the top-level one (nerfstudio semantics).
+  const json* lookup(const json& frame, const json& root, const std::string& key) const {
+    if (const json* v = find(frame, key)) return v;
+    return find(root, key);
+  }
+
+  core::Mat4 matrix(const json& value, const std::string& where) const {
+    const json& rows = array(value, where);
+    // 3x4 is accepted too: some tools drop the constant last row.
+    if (rows.size() != 4 && rows.size() != 3)
+      fail(where, "expected a 4x4 matrix, found " + std::to_string(rows.size()) + " rows");
+    core::Mat4 m;
+    for (size_t r = 0; r < rows.size(); ++r) {
+      std::string row_where = where + "[" + std::to_string(r) + "]";
+      const json& row = array(rows[r], row_where);
+      if (row.size() != 4)
+        fail(row_where, "expected 4 columns, found " + std::to_string(row.size()));
+      for (size_t c = 0; c < 4; ++c)
+        m(int(r), int(c)) = number(row[c], row_where + "[" + std::to_string(c) + "]");
+    }
+    if (rows.size() == 4 &&
+        (m(3, 0) != 0 || m(3, 1) != 0 || m(3, 2) != 0 || std::abs(m(3, 3) - 1) > 1e-9))
+      fail(where + "[3]", "expected the last row to be [0, 0, 0, 1]");
+    if (std::abs(m.rotation().determinant()) < 1e-12) fail(where, "rotation block is singular");
+    return m;
+  }
+
+ private:
+  static std::string type_name(const json& value) { return value.type_name(); }
+  fs::path path_;
+};
+
+core::Intrinsics read_intrinsics(const Reader& in, const json& frame, const json& root,
+                                 const std::string& where) {
+  auto required = [&](const std::string& key) {
+    const json* v = in.lookup(frame, root, key);
+    if (!v) in.fail(where, "missing key \"" + key + "\" (per frame or top level)");
+    return in.number(*v, where + "." + key);
+  };
+  auto optional = [&](const std::string& key, double fallback) {
+    const json* v = in.lookup(frame, root, key);
+    return v ? in.number(*v, where + "." + key) : fallback;
+  };
+
+  if (const json* model = in.lookup(frame, root, "camera_model")) {
+    std::string name = in.string(*model, where + ".camera_model");
+    if (name != "OPENCV" && name != "PINHOLE" && name != "SIMPLE_PINHOLE")
+      in.fail(where + ".camera_model", "unsupported camera model \"" + name +
+                                           "\" (expected OPENCV, PINHOLE or SIMPLE_PINHOLE)");
+  }
+  core::Intrinsics k;
+  double w = required("w"), h = required("h");
+  if (w < 1 || h < 1 || w != std::floor(w) || h != std::floor(h))
+    in.fail(where, "w and h must be positive whole numbers of pixels");
+  k.width = int(w);
+  k.height = int(h);
+  k.fx = required("fl_x");
+  k.fy = optional("fl_y", k.fx);
+  if (k.fx <= 0 || k.fy <= 0) in.fail(where, "focal lengths must be positive");
+  // Missing principal point: the image centre, as nerfstudio assumes.
+  k.cx = optional("cx", 0.5 * k.width);
+  k.cy = optional("cy", 0.5 * k.height);
+  k.k1 = optional("k1", 0);
+  k.k2 = optional("k2", 0);
+  k.p1 = optional("p1", 0);
+  k.p2 = optional("p2", 0);
+  return k;
+}
+
+TransformsFile parse(const Reader& in, const json& root) {
+  if (!root.is_object()) in.fail("top level", "expected a JSON object");
+  TransformsFile file;
+  const json* frames = in.find(root, "frames");
+  if (!frames) in.fail("top level", "missing key \"frames\"");
+  in.array(*frames, "frames");
+  if (frames->empty()) in.fail("frames", "expected at least one frame");
+
+  for (size_t i = 0; i < frames->size(); ++i) {
+    std::string where = "frames[" + std::to_string(i) + "]";
+    const json& f = (*frames)[i];
+    if (!f.is_object()) in.fail(where, "expected an object");
+    TransformsFrame frame;
+    if (const json* v = in.find(f, "file_path"))
+      frame.file_path = in.string(*v, where + ".file_path");
+    if (const json* v = in.find(f, "hyperspectral_file_path"))
+      frame.hyperspectral_file_path = in.string(*v, where + ".hyperspectral_file_path");
+    if (frame.file_path.empty() && frame.hyperspectral_file_path.empty())
+      in.fail(where, "missing key \"file_path\" or \"hyperspectral_file_path\"");
+    const json* m = in.find(f, "transform_matrix");
+    if (!m) in.fail(where, "missing key \"transform_matrix\"");
+    frame.camera_to_world_gl = in.matrix(*m, where + ".transform_matrix");
+    frame.intrinsics = read_intrinsics(in, f, root, where);
+    file.frames.push_back(std::move(frame));
+  }
+
+  if (const json* v = in.find(root, "wavelengths")) {
+    const json& list = in.array(*v, "wavelengths");
+    for (size_t i = 0; i < list.size(); ++i)
+      file.wavelengths_nm.push_back(in.number(list[i], "wavelengths[" + std::to_string(i) + "]"));
+  }
+  if (const json* v = in.find(root, "ply_file_path"))
+    file.ply_file_path = in.string(*v, "ply_file_path");
+  if (const json* v = in.find(root, "scale")) {
+    double s = in.number(*v, "scale");
+    if (s <= 0) in.fail("scale", "expected a positive divisor");
+    file.scale = s;
+  }
+  if (const json* v = in.find(root, "train_filenames"))
+    file.train_files = in.strings(*v, "train_filenames");
+  if (const json* v = in.find(root, "test_filenames"))
+    file.test_files = in.strings(*v, "test_filenames");
+  return file;
+}
+
+bool same_intrinsics(const core::Intrinsics& a, const core::Intrinsics& b) {
+  return a.fx == b.fx && a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.width == b.width &&
+         a.height == b.height && a.k1 == b.k1 && a.k2 == b.k2 && a.p1 == b.p1 && a.p2 == b.p2;
+}
+
+void put_intrinsics(json& out, const core::Intrinsics& k) {
+  out["camera_model"] = k.has_distortion() ? "OPENCV" : "PINHOLE";
+  out["fl_x"] = k.fx;
+  out["fl_y"] = k.fy;
+  out["cx"] = k.cx;
+  out["cy"] = k.cy;
+  out["w"] = k.width;
+  out["h"] = k.height;
+  if (k.has_distortion()) {
+    out["k1"] = k.k1;
+    out["k2"] = k.k2;
+    out["p1"] = k.p1;
+    out["p2"] = k.p2;
+  }
+}
+
+}  // namespace
+
+TransformsFile read_transforms(const fs::path& path) {
+  std::string text = read_file(path);
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& e) {
+    // e.what() carries the byte offset, the useful part for a hand-edited file.
+    throw core::Error(path, std::string("not valid JSON: ") + e.what());
+  }
+  Reader in(path);
+  try {
+    return parse(in, root);
+  } catch (const json::exception& e) {
+    throw core::Error(path, std::string("unexpected content: ") + e.what());
+  }
+}
+
+void write_transforms(const fs::path& path, const TransformsFile& file) {
+  core::require(!file.frames.empty(), path, "refusing to write transforms.json without frames");
+  bool shared = true;
+  for (const auto& f : file.frames)
+    shared = shared && same_intrinsics(f.intrinsics, file.frames.front().intrinsics);
+
+  json root = json::object();
+  if (shared) put_intrinsics(root, file.frames.front().intrinsics);
+  json frames = json::array();
+  for (const auto& f : file.frames) {
+    json frame = json::object();
+    if (!f.file_path.empty()) frame["file_path"] = f.file_path;
+    if (!f.hyperspectral_file_path.empty())
+      frame["hyperspectral_file_path"] = f.hyperspectral_file_path;
+    json matrix = json::array();
+    for (int r = 0; r < 4; ++r)
+      matrix.push_back({f.camera_to_world_gl(r, 0), f.camera_to_world_gl(r, 1),
+                        f.camera_to_world_gl(r, 2), f.camera_to_world_gl(r, 3)});
+    frame["transform_matrix"] = std::move(matrix);
+    if (!shared) put_intrinsics(frame, f.intrinsics);
+    frames.push_back(std::move(frame));
+  }
+  root["frames"] = std::move(frames);
+  if (!file.wavelengths_nm.empty()) root["wavelengths"] = file.wavelengths_nm;
+  if (!file.ply_file_path.empty()) root["ply_file_path"] = file.ply_file_path;
+  if (file.scale) root["scale"] = *file.scale;
+  if (!file.train_files.empty()) root["train_filenames"] = file.train_files;
+  if (!file.test_files.empty()) root["test_filenames"] = file.test_files;
+  // dump() prints doubles with 17 significant digits, so poses round-trip exactly.
+  write_file_atomically(path, root.dump(2) + "\n");
+}
+
+}  // namespace ddhgs::io

@@ -1,0 +1,114 @@
+#include "process/cube_set.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <map>
+
+#include "core/error.h"
+#include "io/cube/cube.h"
+#include "io/scene/scene.h"
+
+namespace ddhgs::process {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+bool is_cube_file(const fs::path& path) {
+  static const char* exts[] = {".npy", ".pt", ".hdr", ".tif", ".tiff"};
+  std::string ext = lower(path.extension().string());
+  return std::any_of(std::begin(exts), std::end(exts), [&](const char* e) { return ext == e; });
+}
+
+std::vector<double> even_grid(const WavelengthRange& range, int64_t bands) {
+  std::vector<double> out;
+  for (int64_t b = 0; b < bands; ++b)
+    out.push_back(bands > 1 ? range.first_nm +
+                                  (range.last_nm - range.first_nm) * double(b) / double(bands - 1)
+                            : range.first_nm);
+  return out;
+}
+
+bool same_grid(const std::vector<double>& a, const std::vector<double>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (std::abs(a[i] - b[i]) > 1e-6) return false;
+  return true;
+}
+
+}  // namespace
+
+WavelengthRange parse_wavelength_range(const std::string& text) {
+  auto colon = text.find(':');
+  WavelengthRange range;
+  try {
+    size_t used_first = 0, used_last = 0;
+    if (colon == std::string::npos) throw std::invalid_argument("no colon");
+    range.first_nm = std::stod(text.substr(0, colon), &used_first);
+    range.last_nm = std::stod(text.substr(colon + 1), &used_last);
+    if (used_first != colon || used_last != text.size() - colon - 1)
+      throw std::invalid_argument("trailing text");
+  } catch (const std::exception&) {
+    throw core::Error("--wl-range '" + text + "': expected MIN:MAX in nm, e.g. 400:1000");
+  }
+  core::require(range.first_nm > 0 && range.last_nm > range.first_nm,
+                "--wl-range '" + text + "': expected 0 < MIN < MAX (nm)");
+  return range;
+}
+
+CubeSet scan_cubes(const fs::path& dir, const std::optional<WavelengthRange>& range) {
+  core::require(fs::is_directory(dir), dir, "is not a folder of cubes");
+  CubeSet set;
+  set.dir = dir;
+  for (const auto& entry : fs::directory_iterator(dir))
+    if (entry.is_regular_file() && is_cube_file(entry.path())) set.files.push_back(entry.path());
+  core::require(!set.files.empty(), dir,
+                "holds no cube files (expected .npy, .pt, ENVI .hdr, .tif or .tiff)");
+  std::sort(set.files.begin(), set.files.end());
+
+  std::map<std::string, fs::path> by_stem;
+  std::vector<double> named_nm;
+  fs::path named_by;
+  for (const auto& file : set.files) {
+    std::string stem = file.stem().string();
+    auto [it, fresh] = by_stem.emplace(stem, file);
+    core::require(fresh, file,
+                  "has the same name as " + it->second.filename().string() +
+                      "; every view needs a cube of its own name");
+    set.names.push_back(stem);
+    io::CubeInfo info = io::probe_cube(file);
+    if (set.bands == 0) {
+      set.height = info.height;
+      set.width = info.width;
+      set.bands = info.bands;
+    }
+    io::require_bands(file, info.bands, set.bands);
+    core::require(info.height == set.height && info.width == set.width, file,
+                  "is " + std::to_string(info.width) + "x" + std::to_string(info.height) +
+                      " pixels, expected " + std::to_string(set.width) + "x" +
+                      std::to_string(set.height) + " like " + set.files[0].filename().string());
+    if (info.wavelengths_nm.empty()) continue;
+    if (named_nm.empty()) {
+      named_nm = info.wavelengths_nm;
+      named_by = file;
+    }
+    core::require(same_grid(info.wavelengths_nm, named_nm), file,
+                  "names other wavelengths than " + named_by.filename().string());
+  }
+  if (!named_nm.empty()) {
+    set.wavelengths_nm = named_nm;
+  } else {
+    core::require(range.has_value(), set.files[0],
+                  "names no wavelengths; pass --wl-range MIN:MAX (first and last band centre, "
+                  "nm)");
+    set.wavelengths_nm = even_grid(*range, set.bands);
+  }
+  return set;
+}
+
+}  // namespace ddhgs::process

@@ -1,0 +1,155 @@
+// `ddhgs process`, last step: COLMAP poses -> transforms.json, sparse points
+// with per-band spectra, and the whole command built in a temporary folder.
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <map>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "io/files/atomic_file.h"
+#include "io/files/output_folder.h"
+#include "io/ply/ply.h"
+#include "io/scene/scene.h"
+#include "process/poses.h"
+#include "process/process.h"
+#include "process/pseudo_rgb_images.h"
+
+namespace ddhgs::process {
+using namespace io;
+namespace fs = std::filesystem;
+
+namespace {
+
+// Poses given with --poses: a COLMAP model folder (.bin or .txt) or a
+// transforms.json, as a COLMAP model.
+ColmapModel read_poses(const fs::path& poses) {
+  if (fs::is_directory(poses)) {
+    auto dir = find_colmap_model(poses);
+    if (!dir && (fs::exists(poses / "cameras.bin") || fs::exists(poses / "cameras.txt")))
+      dir = poses;
+    core::require(dir.has_value(), poses,
+                  "holds no COLMAP model (cameras, images, points3D .bin or .txt)");
+    return read_colmap(*dir);
+  }
+  core::require(fs::is_regular_file(poses), poses,
+                "does not exist (expected a COLMAP model folder or a transforms.json)");
+  return colmap_from_transforms(read_transforms(poses));
+}
+
+ColmapModel largest_colmap_model(const fs::path& sparse) {
+  std::vector<ColmapModel> models;
+  std::vector<fs::path> dirs;
+  if (fs::is_directory(sparse))
+    for (const auto& entry : fs::directory_iterator(sparse))
+      if (entry.is_directory()) dirs.push_back(entry.path());
+  std::sort(dirs.begin(), dirs.end());
+  for (const auto& dir : dirs) models.push_back(read_colmap(dir));
+  auto best = largest_model(models);
+  core::require(best.has_value(), sparse, "COLMAP wrote no model");
+  if (models.size() > 1)
+    core::log_info("process: COLMAP found " + std::to_string(models.size()) +
+                   " separate models; keeping " + dirs[*best].filename().string() + " with " +
+                   std::to_string(models[*best].images.size()) + " views");
+  return std::move(models[*best]);
+}
+
+PointCloud points_of(const ColmapModel& model, const CubeSet& cubes) {
+  PointCloud cloud = colmap_points(model);
+  if (!model.points.empty()) cloud.spectra = sample_point_spectra(model, cubes);
+  return cloud;
+}
+
+std::string relative_to(const fs::path& file, const fs::path& dir) {
+  fs::path rel = fs::relative(fs::absolute(file), fs::absolute(dir));
+  return (rel.empty() ? fs::absolute(file) : rel).generic_string();
+}
+
+}  // namespace
+
+ProcessResult process_cubes(const ProcessOptions& options) {
+  auto start = std::chrono::steady_clock::now();
+  // "scene/" names the folder scene: the temporary sibling needs its name.
+  fs::path out = options.out.lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();
+  const bool run_sfm = options.poses.empty();
+  if (run_sfm) check_colmap_options(options.colmap);
+  const OutputRequest request{
+      out, OutputKind::Scene, options.force, {options.cubes_dir, options.poses}};
+  check_output_folder(request);
+  if (run_sfm) find_colmap(options.colmap);
+  CubeSet cubes = scan_cubes(options.cubes_dir, options.wavelengths);
+  core::log_info("process: " + std::to_string(cubes.files.size()) + " cubes of " +
+                 std::to_string(cubes.width) + "x" + std::to_string(cubes.height) + " px, " +
+                 std::to_string(cubes.bands) + " bands");
+
+  fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
+  fs::create_directories(parent);
+  // The log lives beside the output while COLMAP runs, so a failed run keeps it.
+  fs::path failed_log = parent / (out.filename().string() + ".colmap.log");
+  fs::remove(failed_log);
+  ProcessResult result;
+  result.views = int(cubes.files.size());
+  write_folder_atomically(request, [&](const fs::path& tmp) {
+    Stretch stretch = write_pseudo_rgb_images(cubes, options.pseudo_rgb, tmp / "images");
+    ColmapModel model;
+    if (run_sfm) {
+      run_colmap(options.colmap, tmp / "images", tmp / "colmap", failed_log);
+      model = largest_colmap_model(tmp / "colmap" / "sparse");
+    } else {
+      model = read_poses(options.poses);
+    }
+    std::vector<int64_t> cube_of = cube_of_images(model, cubes);
+    std::vector<bool> posed(cubes.names.size(), false);
+    for (int64_t c : cube_of)
+      if (c >= 0) posed[size_t(c)] = true;
+    for (size_t c = 0; c < posed.size(); ++c)
+      if (!posed[c]) result.unregistered.push_back(cubes.names[c]);
+    result.registered = result.views - int(result.unregistered.size());
+    const std::string source = run_sfm ? failed_log.string() : options.poses.string();
+    core::require(result.registered >= 3, source,
+                  std::to_string(result.registered) + " of " + std::to_string(result.views) +
+                      " views posed; at least 3 are needed to train");
+
+    std::vector<std::string> cube_paths;
+    for (const auto& file : cubes.files) cube_paths.push_back(relative_to(file, out));
+    TransformsFile transforms = transforms_from_colmap(model, cubes, cube_paths);
+    PointCloud cloud = points_of(model, cubes);
+    if (cloud.xyz.defined()) {
+      write_point_ply(tmp / "points.ply", cloud);
+      transforms.ply_file_path = "points.ply";
+      result.points = cloud.xyz.size(0);
+    }
+    write_transforms(tmp / "transforms.json", transforms);
+    write_colmap_binary(tmp / "sparse" / "0", model);
+
+    nlohmann::json summary = {{"generator", "ddhgs process"},
+                              {"cubes_dir", fs::absolute(options.cubes_dir).string()},
+                              {"views", result.views},
+                              {"registered", result.registered},
+                              {"unregistered", result.unregistered},
+                              {"points", result.points},
+                              {"pseudo_rgb", options.pseudo_rgb_spec},
+                              {"stretch_linear", {stretch.low, stretch.high}},
+                              {"poses", run_sfm ? "colmap" : fs::absolute(options.poses).string()}};
+    if (run_sfm) {
+      summary["matcher"] = options.colmap.matcher;
+      summary["camera_model"] = options.colmap.camera_model;
+      summary["colmap_settings"] = options.colmap.settings;
+      fs::rename(failed_log, tmp / "colmap.log");
+    }
+    result.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    summary["seconds"] = result.seconds;
+    write_file_atomically(tmp / "process.json", summary.dump(2) + "\n");
+  });
+  if (!result.unregistered.empty()) {
+    std::string names;
+    for (const auto& n : result.unregistered) names += (names.empty() ? "" : ", ") + n;
+    core::log_warn("process: " + std::to_string(result.unregistered.size()) + " of " +
+                   std::to_string(result.views) + " views have no pose and are left out: " + names);
+  }
+  return result;
+}
+
+}  // namespace ddhgs::process
