@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "eval/evaluate.h"
 #include "io/files/atomic_file.h"
 
 namespace ddhgs::eval {
@@ -68,23 +69,22 @@ DenoisedReport evaluate_denoised(const io::Scene& scene, const model::Gaussians&
     const int v = views[i];
     const std::string& name = scene.views[size_t(v)].name;
     auto start = Clock::now();
-    torch::Tensor render =
-        model::render_gaussians(gaussians, scene.views[size_t(v)].camera, background).image;
+    torch::Tensor render = render_view(scene, gaussians, background, v);
     render_ms += ms_since(start);
     // The first sampler call pays for allocator growth and cold caches.
     if (i == 0 && !settings.empty())
       model::denoise_view(denoiser, render, settings.front().sampler);
-    torch::Tensor truth = scene.image(v), clean_truth = scene.clean_image(v);
     for (size_t s = 0; s < settings.size(); ++s) {
       DenoisedResult& result = report.results[s];
       start = Clock::now();
       torch::Tensor denoised = model::denoise_view(denoiser, render, settings[s].sampler);
       result.denoise_ms += ms_since(start);
-      stored[s].push_back(compute_metrics(denoised, truth));
-      result.per_view.push_back({name, "views", stored[s].back()});
-      if (clean_truth.defined()) {
-        clean[s].push_back(compute_metrics(denoised, clean_truth));
-        result.per_view.push_back({name, "clean", clean[s].back()});
+      const ViewMetrics m = measure_view(scene, v, denoised);
+      stored[s].push_back(m.stored);
+      result.per_view.push_back({name, "views", m.stored});
+      if (m.clean) {
+        clean[s].push_back(*m.clean);
+        result.per_view.push_back({name, "clean", *m.clean});
       }
       bar.update(int64_t(i * settings.size() + s + 1),
                  settings[s].name + " PSNR " + fixed(stored[s].back().psnr_db, 2) + " dB");

@@ -30,12 +30,26 @@ std::string fixed(double value, int decimals) {
   return buf;
 }
 
+}  // namespace
+
 torch::Tensor render_view(const io::Scene& scene, const model::Gaussians& gaussians,
-                          const torch::Tensor& background, int view) {
-  return model::render_gaussians(gaussians, scene.views[size_t(view)].camera, background).image;
+                          const torch::Tensor& background, int view,
+                          const torch::Tensor& band_offsets) {
+  torch::NoGradGuard no_grad;
+  return model::render_gaussians(gaussians, scene.views[size_t(view)].camera, background,
+                                 band_offsets)
+      .image;
 }
 
-}  // namespace
+ViewMetrics measure_view(const io::Scene& scene, int view, const torch::Tensor& image) {
+  torch::NoGradGuard no_grad;
+  const torch::Tensor measured = image.detach().clamp(0, 1);
+  ViewMetrics m;
+  m.stored = compute_metrics(measured, scene.image(view));
+  const torch::Tensor clean = scene.clean_image(view);
+  if (clean.defined()) m.clean = compute_metrics(measured, clean);
+  return m;
+}
 
 std::vector<int> split_views(const io::Scene& scene, const std::string& split) {
   if (split == "test") return scene.test;
@@ -93,13 +107,12 @@ EvalReport evaluate(const io::Scene& scene, const model::Gaussians& gaussians,
   for (size_t i = 0; i < views.size(); ++i) {
     int v = views[i];
     const std::string& name = scene.views[size_t(v)].name;
-    torch::Tensor render = render_view(scene, gaussians, background, v);  // [H, W, N]
-    stored.push_back(compute_metrics(render, scene.image(v)));
-    report.per_view.push_back({name, "views", stored.back()});
-    torch::Tensor clean_gt = scene.clean_image(v);
-    if (clean_gt.defined()) {
-      clean.push_back(compute_metrics(render, clean_gt));
-      report.per_view.push_back({name, "clean", clean.back()});
+    const ViewMetrics m = measure_view(scene, v, render_view(scene, gaussians, background, v));
+    stored.push_back(m.stored);
+    report.per_view.push_back({name, "views", m.stored});
+    if (m.clean) {
+      clean.push_back(*m.clean);
+      report.per_view.push_back({name, "clean", *m.clean});
     }
     bar.update(int64_t(i + 1), "PSNR " + fixed(stored.back().psnr_db, 2) + " dB");
   }

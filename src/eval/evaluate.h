@@ -15,6 +15,26 @@
 
 namespace ddhgs::eval {
 
+// The model's render of one view as it is measured (no autograd). band_offsets:
+// the wavelength encoder's [N, K+1] while training (a run's PLY has them baked in).
+torch::Tensor render_view(const io::Scene& scene, const model::Gaussians& gaussians,
+                          const torch::Tensor& background,  // [N]
+                          int view, const torch::Tensor& band_offsets = {});
+
+// A view's metrics against the stored view and, when the scene has it, the
+// clean ground truth.
+struct ViewMetrics {
+  ImageMetrics stored;
+  std::optional<ImageMetrics> clean;
+};
+
+// The one way ddhgs measures an image of a view: eval, the report, the
+// denoiser's evaluation and the trainer's held-out check all call it, so
+// their numbers agree. The image is clamped to [0, 1], the range of
+// reflectance (and of every picture ddhgs writes), before it is compared.
+ViewMetrics measure_view(const io::Scene& scene, int view,
+                         const torch::Tensor& image);  // [H, W, N]
+
 // View indices of "test", "train" or "all"; core::Error for another name.
 std::vector<int> split_views(const io::Scene& scene, const std::string& split);
 

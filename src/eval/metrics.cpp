@@ -75,8 +75,12 @@ std::vector<double> to_vector(const torch::Tensor& t) {
   return std::vector<double>(c.data_ptr<double>(), c.data_ptr<double>() + c.numel());
 }
 
+std::vector<double> band_mse(const torch::Tensor& p, const torch::Tensor& g) {
+  return to_vector((p - g).square().mean(std::vector<int64_t>{0, 1}));
+}
+
 std::vector<double> band_psnr_checked(const torch::Tensor& p, const torch::Tensor& g) {
-  std::vector<double> mse = to_vector((p - g).square().mean(std::vector<int64_t>{0, 1}));
+  std::vector<double> mse = band_mse(p, g);
   for (double& v : mse) v = psnr_from_mse(v);
   return mse;
 }
@@ -134,7 +138,10 @@ ImageMetrics compute_metrics(const torch::Tensor& pred, const torch::Tensor& gt)
   m.ssim = ssim_per_band(p, g).mean().item<double>();
   m.sam_rad = sam_checked(p, g);
   m.rmse = std::sqrt(mse);
-  m.band_psnr_db = band_psnr_checked(p, g);
+  for (double band : band_mse(p, g)) {
+    m.band_psnr_db.push_back(psnr_from_mse(band));
+    m.band_rmse.push_back(std::sqrt(band));
+  }
   return m;
 }
 
@@ -142,14 +149,17 @@ ImageMetrics mean_metrics(const std::vector<ImageMetrics>& views) {
   ImageMetrics mean;
   if (views.empty()) return mean;
   mean.band_psnr_db.assign(views.front().band_psnr_db.size(), 0.0);
+  mean.band_rmse.assign(views.front().band_rmse.size(), 0.0);
   for (const ImageMetrics& v : views) {
-    core::require(v.band_psnr_db.size() == mean.band_psnr_db.size(),
+    core::require(v.band_psnr_db.size() == mean.band_psnr_db.size() &&
+                      v.band_rmse.size() == mean.band_rmse.size(),
                   "metrics: views with different band counts cannot be averaged");
     mean.psnr_db += v.psnr_db;
     mean.ssim += v.ssim;
     mean.sam_rad += v.sam_rad;
     mean.rmse += v.rmse;
     for (size_t b = 0; b < v.band_psnr_db.size(); ++b) mean.band_psnr_db[b] += v.band_psnr_db[b];
+    for (size_t b = 0; b < v.band_rmse.size(); ++b) mean.band_rmse[b] += v.band_rmse[b];
   }
   double n = double(views.size());
   mean.psnr_db /= n;
@@ -157,6 +167,7 @@ ImageMetrics mean_metrics(const std::vector<ImageMetrics>& views) {
   mean.sam_rad /= n;
   mean.rmse /= n;
   for (double& b : mean.band_psnr_db) b /= n;
+  for (double& b : mean.band_rmse) b /= n;
   return mean;
 }
 

@@ -52,6 +52,7 @@ struct ImageMetrics {
   double sam_rad = 0;
   double rmse = 0;
   std::vector<double> band_psnr_db;  // [N]
+  std::vector<double> band_rmse;     // [N]
 };
 
 // All metrics of one view. Throws core::Error when the shapes differ or a
@@ -59,7 +60,7 @@ struct ImageMetrics {
 ImageMetrics compute_metrics(const torch::Tensor& pred,  // [H, W, N]
                              const torch::Tensor& gt);   // [H, W, N]
 
-// Element-wise mean over views (per-band PSNR averaged band by band).
+// Element-wise mean over views (per-band values averaged band by band).
 ImageMetrics mean_metrics(const std::vector<ImageMetrics>& views);
 
 }  // namespace ddhgs::eval

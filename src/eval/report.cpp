@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "eval/evaluate.h"
 #include "eval/metrics.h"
 #include "eval/report_assets.h"
 #include "eval/report_splats.h"
@@ -25,21 +26,11 @@ namespace {
 // The placeholder in web/report/index.html where the viewer's data scripts go.
 constexpr const char* kViewerScriptsMarker = "<!-- viewer data -->";
 
-// sqrt of the mean squared error over pixels, per band: double [N].
-torch::Tensor band_rmse(const torch::Tensor& pred,  // [H, W, N]
-                        const torch::Tensor& gt) {  // [H, W, N]
-  return (pred.to(torch::kDouble) - gt.to(torch::kDouble))
-      .square()
-      .mean(at::IntArrayRef{0, 1})
-      .sqrt();
-}
-
 // Metrics of the report's views against one kind of ground truth.
 struct TruthMetrics {
   std::string key;    // "views" or "clean"
   std::string title;  // for tables and legends
   std::vector<ImageMetrics> per_view;
-  std::vector<torch::Tensor> band_rmse;  // per view, double [N]
 
   json row(const std::string& label) const {
     ImageMetrics m = mean_metrics(per_view);
@@ -49,15 +40,8 @@ struct TruthMetrics {
             {"sam", m.sam_rad},
             {"rmse", m.rmse}};
   }
-  void add(const torch::Tensor& render, const torch::Tensor& truth) {  // [H, W, N] each
-    per_view.push_back(compute_metrics(render, truth));
-    band_rmse.push_back(eval::band_rmse(render, truth));
-  }
   std::vector<double> mean_band_psnr() const { return mean_metrics(per_view).band_psnr_db; }
-  std::vector<double> mean_band_rmse() const {
-    torch::Tensor mean = torch::stack(band_rmse).mean(0).contiguous();
-    return std::vector<double>(mean.data_ptr<double>(), mean.data_ptr<double>() + mean.numel());
-  }
+  std::vector<double> mean_band_rmse() const { return mean_metrics(per_view).band_rmse; }
   std::vector<double> sam_per_view() const {
     std::vector<double> out;
     for (const auto& m : per_view) out.push_back(m.sam_rad);
@@ -189,8 +173,8 @@ namespace {
 
 // What rendering and measuring the report's views produced.
 struct ViewResults {
-  TruthMetrics stored{"views", "captured views", {}, {}};
-  TruthMetrics clean{"clean", "clean ground truth", {}, {}};
+  TruthMetrics stored{"views", "captured views", {}};
+  TruthMetrics clean{"clean", "clean ground truth", {}};
   json figure_views = json::array();    // pictures per view and band selection
   json viewer_views = json::array();    // band atlases' layout per view
   json viewer_scripts = json::array();  // their script files, relative to the report
@@ -230,13 +214,12 @@ ViewResults render_and_measure(const fs::path& stage, const io::Scene& scene,
   core::ProgressBar bar("report", int64_t(views.size()));
   for (size_t i = 0; i < views.size(); ++i) {
     const int v = views[i];
-    // Not clamped, so the numbers are those of `ddhgs eval`; pictures clamp.
-    torch::Tensor render =
-        model::render_gaussians(gaussians, scene.views[size_t(v)].camera, background).image;
-    torch::Tensor captured = scene.image(v);           // [H, W, N]
-    torch::Tensor clean_truth = scene.clean_image(v);  // [H, W, N] or undefined
-    out.stored.add(render, captured);
-    if (clean_truth.defined()) out.clean.add(render, clean_truth);
+    torch::Tensor render = render_view(scene, gaussians, background, v);  // [H, W, N]
+    torch::Tensor captured = scene.image(v);                              // [H, W, N]
+    torch::Tensor clean_truth = scene.clean_image(v);                     // [H, W, N] or undefined
+    const ViewMetrics m = measure_view(scene, v, render);
+    out.stored.per_view.push_back(m.stored);
+    if (m.clean) out.clean.per_view.push_back(*m.clean);
     const std::string name = scene.views[size_t(v)].name;
     if (int(i) < options.max_views)
       out.figure_views.push_back(write_view_figures(stage, name, render,

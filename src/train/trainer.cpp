@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "eval/evaluate.h"
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
 #include "model/densify.h"
@@ -369,26 +370,20 @@ void Trainer::save(bool numbered) {
 }
 
 json Trainer::test_psnr() {
-  // A quick held-out check; `ddhgs eval` computes the full metrics.
-  torch::NoGradGuard no_grad;
-  double noisy = 0, clean = 0;
-  int n_clean = 0;
-  const torch::Tensor offsets = band_offsets();
-  for (int v : scene_->test) {
-    auto image =
-        model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_, offsets)
-            .image.clamp(0, 1);
-    noisy += psnr(image, scene_->image(v));
-    torch::Tensor gt = scene_->clean_image(v);
-    if (gt.defined()) {
-      clean += psnr(image, gt);
-      ++n_clean;
-    }
-  }
+  // A quick held-out check, measured as `ddhgs eval` measures (eval::measure_view).
   json out;
   if (scene_->test.empty()) return out;
-  out["test_psnr"] = noisy / double(scene_->test.size());
-  if (n_clean > 0) out["test_psnr_clean"] = clean / n_clean;
+  torch::NoGradGuard no_grad;
+  const torch::Tensor offsets = band_offsets();
+  std::vector<eval::ImageMetrics> stored, clean;
+  for (int v : scene_->test) {
+    const eval::ViewMetrics m = eval::measure_view(
+        *scene_, v, eval::render_view(*scene_, state_.gaussians, background_, v, offsets));
+    stored.push_back(m.stored);
+    if (m.clean) clean.push_back(*m.clean);
+  }
+  out["test_psnr"] = eval::mean_metrics(stored).psnr_db;
+  if (!clean.empty()) out["test_psnr_clean"] = eval::mean_metrics(clean).psnr_db;
   return out;
 }
 

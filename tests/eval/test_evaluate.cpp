@@ -127,6 +127,24 @@ TEST_F(EvalScene, MetricsAgainstStoredAndCleanViews) {
   EXPECT_NE(table.find("FPS"), std::string::npos);
 }
 
+TEST_F(EvalScene, MeasureViewClampsToTheReflectanceRangeAndGivesBandRmse) {
+  const int v = scene->test.front();
+  // A render with values outside [0, 1] is measured as its clamped picture.
+  const torch::Tensor over = render_view(*scene, gaussians, background, v) * 3 - 1;  // [H, W, N]
+  const torch::Tensor clamped = over.clamp(0, 1);
+  const ViewMetrics m = measure_view(*scene, v, over);
+  EXPECT_DOUBLE_EQ(m.stored.psnr_db, compute_metrics(clamped, scene->image(v)).psnr_db);
+  EXPECT_DOUBLE_EQ(m.stored.ssim, compute_metrics(clamped, scene->image(v)).ssim);
+  ASSERT_TRUE(m.clean.has_value());
+  EXPECT_DOUBLE_EQ(m.clean->sam_rad, compute_metrics(clamped, scene->clean_image(v)).sam_rad);
+  // Per-band RMSE, by hand.
+  const torch::Tensor diff = clamped.to(torch::kDouble) - scene->image(v).to(torch::kDouble);
+  ASSERT_EQ(m.stored.band_rmse.size(), kWavelengths.size());
+  for (int64_t b = 0; b < int64_t(kWavelengths.size()); ++b)
+    EXPECT_NEAR(m.stored.band_rmse[size_t(b)],
+                diff.select(2, b).square().mean().sqrt().item<double>(), 1e-12);
+}
+
 TEST_F(EvalScene, WritesMetricsJsonAndCsv) {
   EvalOptions options;
   options.fps_repeats = 1;
