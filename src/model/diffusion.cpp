@@ -115,32 +115,27 @@ NoiseSchedule::NoiseSchedule(int64_t steps_in, BetaSchedule kind_in, double beta
   core::require(steps >= 1, "noise schedule: steps must be >= 1, got " + std::to_string(steps));
   core::require(beta_start > 0 && beta_end < 1 && beta_start <= beta_end,
                 "noise schedule: need 0 < beta_start <= beta_end < 1");
-  const auto betas_f64 = kind == BetaSchedule::Linear ? linear_betas(steps, beta_start, beta_end)
-                                                      : cosine_betas(steps);
-  std::vector<double> alphas_f64(steps), prev(steps), sqrt_abar(steps), sqrt_one_minus(steps),
-      post_var(steps), coef_x0(steps), coef_xt(steps);
-  abar_.resize(steps);
+  const auto betas = kind == BetaSchedule::Linear ? linear_betas(steps, beta_start, beta_end)
+                                                  : cosine_betas(steps);
+  abar_.resize(size_t(steps));
+  const size_t count = size_t(steps);
+  std::vector<double> sqrt_abar(count), sqrt_one_minus(count);
   double product = 1.0;
-  for (int64_t t = 0; t < steps; ++t) {
-    alphas_f64[t] = 1.0 - betas_f64[t];
-    prev[t] = product;
-    product *= alphas_f64[t];
+  for (size_t t = 0; t < size_t(steps); ++t) {
+    product *= 1.0 - betas[t];
     abar_[t] = product;
     sqrt_abar[t] = std::sqrt(product);
     sqrt_one_minus[t] = std::sqrt(1.0 - product);
-    post_var[t] = betas_f64[t] * (1.0 - prev[t]) / (1.0 - product);
-    coef_x0[t] = std::sqrt(prev[t]) * betas_f64[t] / (1.0 - product);
-    coef_xt[t] = std::sqrt(alphas_f64[t]) * (1.0 - prev[t]) / (1.0 - product);
   }
-  betas = as_float_tensor(betas_f64);
-  alphas = as_float_tensor(alphas_f64);
   alphas_cumprod = as_float_tensor(abar_);
-  alphas_cumprod_prev = as_float_tensor(prev);
   sqrt_alphas_cumprod = as_float_tensor(sqrt_abar);
   sqrt_one_minus_alphas_cumprod = as_float_tensor(sqrt_one_minus);
-  posterior_variance = as_float_tensor(post_var);
-  posterior_coef_x0 = as_float_tensor(coef_x0);
-  posterior_coef_xt = as_float_tensor(coef_xt);
+}
+
+NoiseSchedule::Posterior NoiseSchedule::posterior(int64_t t) const {
+  const double abar = alpha_bar(t), prev = alpha_bar_prev(t), b = beta(t);
+  return {std::sqrt(prev) * b / (1.0 - abar), std::sqrt(1.0 - b) * (1.0 - prev) / (1.0 - abar),
+          b * (1.0 - prev) / (1.0 - abar)};
 }
 
 torch::Tensor q_sample(const NoiseSchedule& schedule, const torch::Tensor& x0,
@@ -275,18 +270,11 @@ torch::Tensor ddpm_sample(const NoisePredictor& predictor, const NoiseSchedule& 
                           const torch::Tensor& cond, uint64_t seed, double start_strength) {
   torch::NoGradGuard no_grad;
   auto [generator, cond_model, x, t_start] = reverse_start(schedule, cond, seed, start_strength);
-  const auto& abar = schedule.alphas_cumprod_f64();
   for (int64_t t = t_start; t >= 0; --t) {
-    auto x0 = predict_x0_eps(predictor, x, cond_model, t, abar[t]).first;
-    const double prev = t > 0 ? abar[t - 1] : 1.0;
-    const double beta = 1.0 - abar[t] / prev;
-    const double coef_x0 = std::sqrt(prev) * beta / (1.0 - abar[t]);
-    const double coef_xt = std::sqrt(1.0 - beta) * (1.0 - prev) / (1.0 - abar[t]);
-    x = coef_x0 * x0 + coef_xt * x;
-    if (t > 0) {
-      const double variance = beta * (1.0 - prev) / (1.0 - abar[t]);
-      x = x + std::sqrt(variance) * torch::randn(x.sizes(), generator, x.options());
-    }
+    auto x0 = predict_x0_eps(predictor, x, cond_model, t, schedule.alpha_bar(t)).first;
+    const NoiseSchedule::Posterior q = schedule.posterior(t);
+    x = q.coef_x0 * x0 + q.coef_xt * x;
+    if (t > 0) x = x + std::sqrt(q.variance) * torch::randn(x.sizes(), generator, x.options());
   }
   return to_data_space(x);
 }

@@ -37,20 +37,28 @@ struct NoiseSchedule {
 
   int64_t steps = 0;  // T
   BetaSchedule kind = BetaSchedule::Linear;
-  double beta_start = 0, beta_end = 0;          // as constructed (linear only)
-  torch::Tensor betas;                          // [T]
-  torch::Tensor alphas;                         // [T] 1 - beta
-  torch::Tensor alphas_cumprod;                 // [T] abar_t = prod_{s <= t} alpha_s
-  torch::Tensor alphas_cumprod_prev;            // [T] abar_{t-1}, 1 at t = 0
-  torch::Tensor sqrt_alphas_cumprod;            // [T]
-  torch::Tensor sqrt_one_minus_alphas_cumprod;  // [T]
-  // q(x_{t-1} | x_t, x_0) = N(coef_x0 x_0 + coef_xt x_t, posterior_variance).
-  torch::Tensor posterior_variance;  // [T] beta_t (1 - abar_{t-1}) / (1 - abar_t)
-  torch::Tensor posterior_coef_x0;   // [T] sqrt(abar_{t-1}) beta_t / (1 - abar_t)
-  torch::Tensor posterior_coef_xt;   // [T] sqrt(alpha_t) (1 - abar_{t-1}) / (1 - abar_t)
+  double beta_start = 0, beta_end = 0;  // as constructed (linear only)
 
-  // abar_t in double, for the samplers' per-step scalars.
+  // abar_t = prod_{s <= t} (1 - beta_s), in double: the one source every
+  // other quantity of the schedule is derived from.
   const std::vector<double>& alphas_cumprod_f64() const { return abar_; }
+  double alpha_bar(int64_t t) const { return abar_[size_t(t)]; }
+  double alpha_bar_prev(int64_t t) const { return t > 0 ? abar_[size_t(t - 1)] : 1.0; }
+  double beta(int64_t t) const { return 1.0 - alpha_bar(t) / alpha_bar_prev(t); }
+
+  // q(x_{t-1} | x_t, x_0) = N(coef_x0 x_0 + coef_xt x_t, variance): what the
+  // DDPM sampler steps by.
+  struct Posterior {
+    double coef_x0;   // sqrt(abar_{t-1}) beta_t / (1 - abar_t)
+    double coef_xt;   // sqrt(1 - beta_t) (1 - abar_{t-1}) / (1 - abar_t)
+    double variance;  // beta_t (1 - abar_{t-1}) / (1 - abar_t)
+  };
+  Posterior posterior(int64_t t) const;
+
+  // float32 [T] copies for per-sample gathers in batched tensor code.
+  torch::Tensor alphas_cumprod;                 // abar_t
+  torch::Tensor sqrt_alphas_cumprod;            // sqrt(abar_t)
+  torch::Tensor sqrt_one_minus_alphas_cumprod;  // sqrt(1 - abar_t)
 
  private:
   std::vector<double> abar_;
