@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "core/mat.h"
 #include "render/tiles.h"
 
 namespace ddhgs::render {
@@ -24,16 +25,55 @@ M3 rotation_from(const Quat& q) {
           2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
 }
 
+// 2x3 row-major: the EWA Jacobian J and T = J W.
+struct Mat23 {
+  std::array<double, 6> m{};
+  double& operator()(int r, int c) { return m[r * 3 + c]; }
+  double operator()(int r, int c) const { return m[r * 3 + c]; }
+};
+
+// 2x2 row-major, symmetric where it stands for a 2D covariance or conic.
+using Mat2 = std::array<double, 4>;
+
+core::Mat3 as_mat3(const M3& a) {
+  core::Mat3 r;
+  r.m = a;
+  return r;
+}
+
+// a * b for a 2x3 and a 3x3 matrix.
+Mat23 times(const Mat23& a, const core::Mat3& b) {
+  Mat23 out;
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 3; ++c)
+      out(r, c) = a(r, 0) * b(0, c) + a(r, 1) * b(1, c) + a(r, 2) * b(2, c);
+  return out;
+}
+
+// a * b for a 2x2 and a 2x3 matrix.
+Mat23 times(const Mat2& a, const Mat23& b) {
+  Mat23 out;
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 3; ++c) out(r, c) = a[r * 2] * b(0, c) + a[r * 2 + 1] * b(1, c);
+  return out;
+}
+
+// a^T * b for two 2x3 matrices: 3x3.
+core::Mat3 transposed_times(const Mat23& a, const Mat23& b) {
+  core::Mat3 out;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out(r, c) = a(0, r) * b(0, c) + a(1, r) * b(1, c);
+  return out;
+}
+
 // Everything the forward computes per Gaussian that the backward reuses.
 struct GaussianGeometry {
-  double mc[3];     // camera-space mean
-  double view[9];   // world-to-camera rotation
-  double rq[9];     // rotation of the Gaussian
-  double scale[3];  // exp(log_scales)
-  double sigma[9];  // 3D covariance
-  double jac[6];    // 2x3 EWA Jacobian
-  double tmat[6];   // J * view, 2x3
-  double cov2[3];   // dilated 2D covariance (a, b, c)
+  core::Vec3 mc;                // camera-space mean
+  core::Mat3 view;              // world-to-camera rotation W
+  core::Mat3 rq;                // rotation of the Gaussian
+  std::array<double, 3> scale;  // exp(log_scales)
+  core::Mat3 sigma;             // 3D covariance Rq S^2 Rq^T
+  Mat23 tmat;                   // T = J W
   bool clamp_x, clamp_y;
   double rx, ry;  // clamped x/z, y/z
   Quat q;         // normalised quaternion
@@ -44,51 +84,28 @@ GaussianGeometry geometry(const float* m, const float* ls, const float* qr, cons
                           const std::array<double, 4>& lim) {
   GaussianGeometry g;
   const float* v = cam.world_to_camera;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) g.view[r * 3 + c] = v[r * 4 + c];
-    g.mc[r] = v[r * 4] * double(m[0]) + v[r * 4 + 1] * double(m[1]) + v[r * 4 + 2] * double(m[2]) +
-              v[r * 4 + 3];
-  }
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) g.view(r, c) = v[r * 4 + c];
+  g.mc = g.view * core::Vec3{m[0], m[1], m[2]} + core::Vec3{v[3], v[7], v[11]};
   g.qnorm = std::sqrt(double(qr[0]) * qr[0] + double(qr[1]) * qr[1] + double(qr[2]) * qr[2] +
                       double(qr[3]) * qr[3]);
   g.q = {qr[0] / g.qnorm, qr[1] / g.qnorm, qr[2] / g.qnorm, qr[3] / g.qnorm};
-  const M3 rq = rotation_from(g.q);
-  std::copy(rq.begin(), rq.end(), g.rq);
-  for (int i = 0; i < 3; ++i) g.scale[i] = std::exp(double(ls[i]));
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) {
-      double s = 0;
-      for (int k = 0; k < 3; ++k) s += g.rq[i * 3 + k] * g.rq[j * 3 + k] * g.scale[k] * g.scale[k];
-      g.sigma[i * 3 + j] = s;
-    }
-  const double z = g.mc[2];
-  const double tx = g.mc[0] / z, ty = g.mc[1] / z;
+  g.rq = as_mat3(rotation_from(g.q));
+  for (int i = 0; i < 3; ++i) g.scale[size_t(i)] = std::exp(double(ls[i]));
+  core::Mat3 scaled = g.rq;  // Rq S
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) scaled(r, c) *= g.scale[size_t(c)];
+  g.sigma = scaled * scaled.transposed();
+  const double z = g.mc.z;
+  const double tx = g.mc.x / z, ty = g.mc.y / z;
   g.rx = std::fmin(std::fmax(tx, -lim[0]), lim[1]);
   g.ry = std::fmin(std::fmax(ty, -lim[2]), lim[3]);
   g.clamp_x = g.rx != tx;
   g.clamp_y = g.ry != ty;
-  g.jac[0] = cam.fx / z, g.jac[1] = 0, g.jac[2] = -cam.fx * g.rx / z;
-  g.jac[3] = 0, g.jac[4] = cam.fy / z, g.jac[5] = -cam.fy * g.ry / z;
-  for (int r = 0; r < 2; ++r)
-    for (int c = 0; c < 3; ++c) {
-      double s = 0;
-      for (int k = 0; k < 3; ++k) s += g.jac[r * 3 + k] * g.view[k * 3 + c];
-      g.tmat[r * 3 + c] = s;
-    }
-  double ts[6];  // T * Sigma
-  for (int r = 0; r < 2; ++r)
-    for (int c = 0; c < 3; ++c) {
-      double s = 0;
-      for (int k = 0; k < 3; ++k) s += g.tmat[r * 3 + k] * g.sigma[k * 3 + c];
-      ts[r * 3 + c] = s;
-    }
-  auto dot3 = [](const double* a, const double* b) {
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-  };
-  // 0.3 px^2 dilation: every splat covers at least about a pixel (anti-aliasing).
-  g.cov2[0] = dot3(ts, g.tmat) + 0.3;
-  g.cov2[1] = dot3(ts, g.tmat + 3);
-  g.cov2[2] = dot3(ts + 3, g.tmat + 3) + 0.3;
+  Mat23 jac;
+  jac(0, 0) = cam.fx / z, jac(0, 2) = -cam.fx * g.rx / z;
+  jac(1, 1) = cam.fy / z, jac(1, 2) = -cam.fy * g.ry / z;
+  g.tmat = times(jac, g.view);
   return g;
 }
 
@@ -188,6 +205,102 @@ Projected project_forward(const torch::Tensor& means, const torch::Tensor& log_s
   return out;
 }
 
+namespace {
+
+// The backward, one vector-Jacobian product per step of the forward, from
+// the screen-space gradients back to the 3D parameters.
+
+// conic = inverse(cov2): dcov2 = -K dK K, with dK in full symmetric form
+// (the conic's off-diagonal B stands for two entries).
+Mat2 conic_vjp(const float* conic, const float* d_conic) {
+  const Mat2 k = {conic[0], conic[1], conic[1], conic[2]};
+  const Mat2 dk = {d_conic[0], 0.5 * d_conic[1], 0.5 * d_conic[1], d_conic[2]};
+  Mat2 kdk{}, out{};
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 2; ++c) kdk[r * 2 + c] = k[r * 2] * dk[c] + k[r * 2 + 1] * dk[2 + c];
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 2; ++c) out[r * 2 + c] = -(kdk[r * 2] * k[c] + kdk[r * 2 + 1] * k[2 + c]);
+  return out;
+}
+
+// cov2 = T Sigma T^T (+ dilation): dT = 2 dcov2 T Sigma, dSigma = T^T dcov2 T.
+struct Cov2Grads {
+  Mat23 d_tmat;
+  core::Mat3 d_sigma;
+};
+Cov2Grads cov2_vjp(const Mat2& d_cov2, const GaussianGeometry& g) {
+  const Mat23 gt = times(d_cov2, g.tmat);  // dcov2 T
+  Cov2Grads out;
+  out.d_tmat = times(gt, g.sigma);
+  for (double& x : out.d_tmat.m) x *= 2;
+  out.d_sigma = transposed_times(g.tmat, gt);
+  return out;
+}
+
+// T = J W: dJ = dT W^T; then J = [[fx/z, 0, -fx rx/z], [0, fy/z, -fy ry/z]]
+// with rx = x/z and ry = y/z unless clamped: the camera-space mean's share.
+core::Vec3 jacobian_vjp(const Mat23& d_tmat, const GaussianGeometry& g, const RenderCamera& cam) {
+  const Mat23 dj = times(d_tmat, g.view.transposed());
+  const double z = g.mc.z;
+  core::Vec3 d_mc;
+  d_mc.z -= (dj(0, 0) * cam.fx + dj(1, 1) * cam.fy) / (z * z);
+  d_mc.z += (dj(0, 2) * cam.fx * g.rx + dj(1, 2) * cam.fy * g.ry) / (z * z);
+  const double drx = -dj(0, 2) * cam.fx / z, dry = -dj(1, 2) * cam.fy / z;
+  if (!g.clamp_x) d_mc.x += drx / z, d_mc.z -= drx * g.mc.x / (z * z);
+  if (!g.clamp_y) d_mc.y += dry / z, d_mc.z -= dry * g.mc.y / (z * z);
+  return d_mc;
+}
+
+// Sigma = M M^T with M = Rq S: dM = 2 dSigma M, dRq = dM S, and each log
+// scale gets dM's column . Rq's column times its scale.
+struct SigmaGrads {
+  core::Mat3 d_rotation;
+  std::array<double, 3> d_log_scales{};
+};
+SigmaGrads sigma_vjp(const core::Mat3& d_sigma, const GaussianGeometry& g) {
+  const core::Mat3 ds_rq = d_sigma * g.rq;
+  SigmaGrads out;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      const double s = g.scale[size_t(c)];
+      const double dm = 2 * ds_rq(r, c) * s;
+      out.d_rotation(r, c) = dm * s;
+      out.d_log_scales[size_t(c)] += dm * g.rq(r, c) * s;
+    }
+  return out;
+}
+
+// Rq = R(q / |q|): the rotation's derivative by the normalised quaternion,
+// then the normalisation (the radial component projected out).
+std::array<double, 4> quat_vjp(const core::Mat3& d_rotation, const Quat& q, double qnorm) {
+  const auto& dr = d_rotation.m;
+  const double w = q.w, x = q.x, y = q.y, z = q.z;
+  const std::array<double, 4> dq = {
+      2 * (-z * dr[1] + y * dr[2] + z * dr[3] - x * dr[5] - y * dr[6] + x * dr[7]),
+      2 * (y * dr[1] + z * dr[2] + y * dr[3] - 2 * x * dr[4] - w * dr[5] + z * dr[6] + w * dr[7] -
+           2 * x * dr[8]),
+      2 * (-2 * y * dr[0] + x * dr[1] + w * dr[2] + x * dr[3] + z * dr[5] - w * dr[6] + z * dr[7] -
+           2 * y * dr[8]),
+      2 * (-2 * z * dr[0] - w * dr[1] + x * dr[2] + w * dr[3] - 2 * z * dr[4] + y * dr[5] +
+           x * dr[6] + y * dr[7])};
+  const double radial = w * dq[0] + x * dq[1] + y * dq[2] + z * dq[3];
+  const std::array<double, 4> qn = {w, x, y, z};
+  std::array<double, 4> out{};
+  for (size_t c = 0; c < 4; ++c) out[c] = (dq[c] - qn[c] * radial) / qnorm;
+  return out;
+}
+
+// means2d = (fx x / z + cx, fy y / z + cy) and depth = z: the camera-space
+// mean's share.
+core::Vec3 screen_vjp(double du, double dv, double d_depth, const core::Vec3& mc,
+                      const RenderCamera& cam) {
+  const double z = mc.z;
+  return {du * cam.fx / z, dv * cam.fy / z,
+          d_depth - (du * cam.fx * mc.x + dv * cam.fy * mc.y) / (z * z)};
+}
+
+}  // namespace
+
 ProjectGrads project_backward(const torch::Tensor& means, const torch::Tensor& log_scales,
                               const torch::Tensor& quats, const torch::Tensor& logit_opacities,
                               const RenderCamera& cam, const Projected& projected,
@@ -215,83 +328,24 @@ ProjectGrads project_backward(const torch::Tensor& means, const torch::Tensor& l
   at::parallel_for(0, count, 2048, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       const double o = op[i];
-      glo[i] = float(dop[i] * o * (1 - o));
+      glo[i] = float(dop[i] * o * (1 - o));  // sigmoid
       const float* v = cam.world_to_camera;
       const float* mi = m + 3 * i;
       const double z = v[8] * double(mi[0]) + v[9] * double(mi[1]) + v[10] * double(mi[2]) + v[11];
       if (!(z > cam.near_plane)) continue;
       const GaussianGeometry g = geometry(mi, ls + 3 * i, qr + 4 * i, cam, lim);
-      double dmc[3] = {0, 0, ddep[i]};
-      // Screen position.
-      const double du = dm2[2 * i], dv = dm2[2 * i + 1];
-      dmc[0] += du * cam.fx / z;
-      dmc[1] += dv * cam.fy / z;
-      dmc[2] -= (du * cam.fx * g.mc[0] + dv * cam.fy * g.mc[1]) / (z * z);
+      core::Vec3 d_mc = screen_vjp(dm2[2 * i], dm2[2 * i + 1], ddep[i], g.mc, cam);
       if (rad[i] > 0) {
-        // conic = inverse(cov2): dCov = -K dK K, with dK in full symmetric form.
-        const double k[4] = {con[3 * i], con[3 * i + 1], con[3 * i + 1], con[3 * i + 2]};
-        const double dk[4] = {dcon[3 * i], 0.5 * dcon[3 * i + 1], 0.5 * dcon[3 * i + 1],
-                              dcon[3 * i + 2]};
-        double kd[4], gc[4];
-        for (int r = 0; r < 2; ++r)
-          for (int c = 0; c < 2; ++c) kd[r * 2 + c] = k[r * 2] * dk[c] + k[r * 2 + 1] * dk[2 + c];
-        for (int r = 0; r < 2; ++r)
-          for (int c = 0; c < 2; ++c)
-            gc[r * 2 + c] = -(kd[r * 2] * k[c] + kd[r * 2 + 1] * k[2 + c]);
-        // cov2 = T Sigma T^T: dT = 2 gc T Sigma, dSigma = T^T gc T.
-        double gct[6], dtm[6], dsig[9];
-        for (int r = 0; r < 2; ++r)
-          for (int c = 0; c < 3; ++c)
-            gct[r * 3 + c] = gc[r * 2] * g.tmat[c] + gc[r * 2 + 1] * g.tmat[3 + c];
-        for (int r = 0; r < 2; ++r)
-          for (int c = 0; c < 3; ++c) {
-            double s = 0;
-            for (int q = 0; q < 3; ++q) s += gct[r * 3 + q] * g.sigma[q * 3 + c];
-            dtm[r * 3 + c] = 2 * s;
-          }
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c)
-            dsig[r * 3 + c] = g.tmat[r] * gct[c] + g.tmat[3 + r] * gct[3 + c];
-        // T = J view: dJ = dT view^T.
-        double dj[6];
-        for (int r = 0; r < 2; ++r)
-          for (int c = 0; c < 3; ++c) {
-            double s = 0;
-            for (int q = 0; q < 3; ++q) s += dtm[r * 3 + q] * g.view[c * 3 + q];
-            dj[r * 3 + c] = s;
-          }
-        // J = [[fx/z, 0, -fx rx/z], [0, fy/z, -fy ry/z]], rx = clamp(x/z).
-        dmc[2] -= (dj[0] * cam.fx + dj[4] * cam.fy) / (z * z);
-        dmc[2] += (dj[2] * cam.fx * g.rx + dj[5] * cam.fy * g.ry) / (z * z);
-        const double drx = -dj[2] * cam.fx / z, dry = -dj[5] * cam.fy / z;
-        if (!g.clamp_x) dmc[0] += drx / z, dmc[2] -= drx * g.mc[0] / (z * z);
-        if (!g.clamp_y) dmc[1] += dry / z, dmc[2] -= dry * g.mc[1] / (z * z);
-        // Sigma = M M^T with M = Rq S: dM = 2 dSigma M.
-        double dr[9];
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) {
-            double dmrc = 0;
-            for (int q = 0; q < 3; ++q) dmrc += dsig[r * 3 + q] * g.rq[q * 3 + c];
-            dmrc *= 2 * g.scale[c];
-            dr[r * 3 + c] = dmrc * g.scale[c];
-            gls[3 * i + c] += float(dmrc * g.rq[r * 3 + c] * g.scale[c]);
-          }
-        const double w = g.q.w, x = g.q.x, y = g.q.y, zq = g.q.z;
-        double dq[4] = {
-            2 * (-zq * dr[1] + y * dr[2] + zq * dr[3] - x * dr[5] - y * dr[6] + x * dr[7]),
-            2 * (y * dr[1] + zq * dr[2] + y * dr[3] - 2 * x * dr[4] - w * dr[5] + zq * dr[6] +
-                 w * dr[7] - 2 * x * dr[8]),
-            2 * (-2 * y * dr[0] + x * dr[1] + w * dr[2] + x * dr[3] + zq * dr[5] - w * dr[6] +
-                 zq * dr[7] - 2 * y * dr[8]),
-            2 * (-2 * zq * dr[0] - w * dr[1] + x * dr[2] + w * dr[3] - 2 * zq * dr[4] + y * dr[5] +
-                 x * dr[6] + y * dr[7])};
-        // Normalisation: project out the radial component.
-        const double qd = w * dq[0] + x * dq[1] + y * dq[2] + zq * dq[3];
-        const double qn[4] = {w, x, y, zq};
-        for (int c = 0; c < 4; ++c) gq[4 * i + c] = float((dq[c] - qn[c] * qd) / g.qnorm);
+        const Cov2Grads d_cov2 = cov2_vjp(conic_vjp(con + 3 * i, dcon + 3 * i), g);
+        d_mc = d_mc + jacobian_vjp(d_cov2.d_tmat, g, cam);
+        const SigmaGrads d_sigma = sigma_vjp(d_cov2.d_sigma, g);
+        for (size_t c = 0; c < 3; ++c) gls[3 * i + int64_t(c)] = float(d_sigma.d_log_scales[c]);
+        const std::array<double, 4> dq = quat_vjp(d_sigma.d_rotation, g.q, g.qnorm);
+        for (size_t c = 0; c < 4; ++c) gq[4 * i + int64_t(c)] = float(dq[c]);
       }
-      for (int c = 0; c < 3; ++c)
-        gm[3 * i + c] = float(g.view[c] * dmc[0] + g.view[3 + c] * dmc[1] + g.view[6 + c] * dmc[2]);
+      // mc = W m + t: dm = W^T dmc.
+      const core::Vec3 d_mean = g.view.transposed() * d_mc;
+      gm[3 * i] = float(d_mean.x), gm[3 * i + 1] = float(d_mean.y), gm[3 * i + 2] = float(d_mean.z);
     }
   });
   return out;
