@@ -6,6 +6,7 @@
 #include <ATen/Parallel.h>
 
 #include "core/error.h"
+#include "core/stage_timer.h"
 #include "render/rasterize.h"
 
 namespace ddhgs::render {
@@ -164,6 +165,7 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
                                const torch::Tensor& rest, const torch::Tensor& means,
                                const torch::Tensor& center, const torch::Tensor& offsets,
                                int degree) {
+    core::StageScope stage("sh forward");
     ctx->save_for_backward({dc, rest, means, center, offsets});
     ctx->saved_data["degree"] = degree;
     auto out = torch::empty_like(dc);
@@ -179,6 +181,7 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
 
   static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
                                                  torch::autograd::variable_list grad_outputs) {
+    core::StageScope stage("sh backward");
     const auto saved = ctx->get_saved_variables();
     const auto &dc = saved[0], &rest = saved[1], &means = saved[2], &center = saved[3],
                &offsets = saved[4];

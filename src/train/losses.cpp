@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "core/stage_timer.h"
 #include "model/ssim.h"
 #include "train/spectral_loss.h"
 
@@ -28,10 +29,15 @@ torch::Tensor dssim_loss(const torch::Tensor& render, const torch::Tensor& targe
 }
 
 std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight) {
-  return {
-      {"l1", l1_weight, [](const LossInputs& in) { return train::l1_loss(in.render, in.target); }},
-      {"dssim", dssim_weight,
-       [](const LossInputs& in) { return train::dssim_loss(in.render, in.target); }}};
+  return {{"l1", l1_weight,
+           [](const LossInputs& in) {
+             core::StageScope stage("l1 forward");
+             return train::l1_loss(in.render, in.target);
+           }},
+          {"dssim", dssim_weight, [](const LossInputs& in) {
+             core::StageScope stage("ssim forward");
+             return train::dssim_loss(in.render, in.target);
+           }}};
 }
 
 double psnr(const torch::Tensor& render, const torch::Tensor& target) {

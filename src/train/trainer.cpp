@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/stage_timer.h"
 #include "io/atomic_file.h"
 #include "io/ply.h"
 #include "model/densify.h"
@@ -228,6 +229,7 @@ int Trainer::view_for(int64_t iteration) const {
 }
 
 void Trainer::step(int64_t iteration, json& record) {
+  core::StageScope step_scope("step (other)");
   set_learning_rates(iteration);
   auto& g = state_.gaussians;
   const int64_t degree_every = config_.at("model").at("sh_degree_every").get<int64_t>();
@@ -236,23 +238,44 @@ void Trainer::step(int64_t iteration, json& record) {
 
   const int view = view_for(iteration);
   const core::Camera& camera = scene_->views[view].camera;
-  torch::Tensor target = scene_->image(view);
+  torch::Tensor target;
+  {
+    core::StageScope stage("view (to float)");
+    target = scene_->image(view);
+  }
   auto sink = torch::zeros({g.size(), 2}).requires_grad_(true);
-  auto out = model::render_gaussians(g, camera, background_, band_offsets(), sink);
-  LossValues loss = evaluate_losses(
-      losses_, {out.image, target, view, iteration,
-                mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration))});
-  loss.total.backward();
+  render::RenderOutput out;
+  {
+    core::StageScope stage("render (other)");
+    out = model::render_gaussians(g, camera, background_, band_offsets(), sink);
+  }
+  LossValues loss;
+  {
+    core::StageScope stage("losses (other)");
+    loss = evaluate_losses(
+        losses_, {out.image, target, view, iteration,
+                  mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration))});
+  }
+  {
+    core::StageScope stage("backward (other)");
+    loss.total.backward();
+  }
 
   const json& d = config_.at("densify");
   const int64_t until = d.at("until_iter").get<int64_t>();
-  if (iteration < until && sink.grad().defined())
+  if (iteration < until && sink.grad().defined()) {
+    core::StageScope stage("densify stats");
     state_.stats.accumulate(out.radii, sink.grad(), camera.intrinsics.width,
                             camera.intrinsics.height);
-  state_.adam.step();
-  state_.adam.zero_grad();
+  }
+  {
+    core::StageScope stage("adam");
+    state_.adam.step();
+    state_.adam.zero_grad();
+  }
 
   if (iteration < until) {
+    core::StageScope stage("densify");
     const int64_t reset_every = d.at("opacity_reset_every").get<int64_t>();
     if (iteration > d.at("from_iter").get<int64_t>() && every(iteration, d.at("every"))) {
       auto generator = at::make_generator<at::CPUGeneratorImpl>(
@@ -269,12 +292,21 @@ void Trainer::step(int64_t iteration, json& record) {
     if (every(iteration, reset_every)) model::reset_opacity(g, state_.adam);
   }
 
+  core::StageScope stage("metrics");
   record = {{"iter", iteration}, {"loss", loss.total.item<double>()}};
   for (const auto& [name, value] : loss.terms) record[name] = value;
   record["train_psnr"] = psnr(out.image, target);
   record["num_gaussians"] = g.size();
   record["densify_added"] = state_.meta["densify_added"];
   record["densify_removed"] = state_.meta["densify_removed"];
+}
+
+json Trainer::advance() {
+  json record;
+  const int64_t iteration = state_.iteration + 1;
+  step(iteration, record);
+  state_.iteration = iteration;
+  return record;
 }
 
 int64_t Trainer::total_steps() const {

@@ -41,6 +41,9 @@ class Trainer {
   // Trains up to the configured iteration count; on SIGINT (or when
   // request_stop() is called) saves a checkpoint and returns Interrupted.
   TrainStatus run();
+  // One Gaussian iteration after state().iteration, without metrics,
+  // checkpoints or outputs (benchmarks); returns its metrics record.
+  nlohmann::json advance();
 
   // Loss terms; later components append their own before run().
   std::vector<LossTerm>& losses() { return losses_; }
