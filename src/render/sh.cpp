@@ -5,6 +5,7 @@
 
 #include <ATen/Parallel.h>
 
+#include "core/buffer_pool.h"
 #include "core/error.h"
 #include "core/stage_timer.h"
 #include "render/rasterize.h"
@@ -76,7 +77,7 @@ void forward_kernel(const ShInputs<T>& in, const ShShapes& s, T* out) {
 template <typename T>
 struct ShGrads {
   T* dc = nullptr;       // [G, N]
-  T* rest = nullptr;     // [G, N, rest_stride], zero-initialised
+  T* rest = nullptr;     // [G, N, rest_stride], every entry written
   T* means = nullptr;    // [G, 3]
   T* offsets = nullptr;  // [chunks, N, K] per-chunk partial sums, zero-initialised
 };
@@ -101,11 +102,16 @@ void backward_kernel(const ShInputs<T>& in, const ShShapes& s, const T* grad_out
           const bool clamped = band_value<K>(in, s, g, n, Y) < T(0);
           const T gv = clamped ? T(0) : grad_out[g * s.N + n];
           if (gr.dc) gr.dc[g * s.N + n] = gv * Y[0];
-          if (gv == T(0)) continue;
           if (gr.rest) {
+            // Every entry is written (the buffer is reused, not zeroed):
+            // coefficients above the degree get zero.
             T* rest_grad = gr.rest + (g * s.N + n) * s.rest_stride;
-            for (int k = 1; k < K; ++k) rest_grad[k - 1] = gv * Y[k];
+            int64_t k = 1;
+            if (gv != T(0))
+              for (; k < K; ++k) rest_grad[k - 1] = gv * Y[k];
+            std::fill(rest_grad + k - 1, rest_grad + s.rest_stride, T(0));
           }
+          if (gv == T(0)) continue;
           if (offsets_partial) {
             T* partial = offsets_partial + n * K;
             for (int k = 0; k < K; ++k) partial[k] += gv * Y[k];
@@ -168,7 +174,8 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
     core::StageScope stage("sh forward");
     ctx->save_for_backward({dc, rest, means, center, offsets});
     ctx->saved_data["degree"] = degree;
-    auto out = torch::empty_like(dc);
+    // Pooled: the colours and the SH gradients are allocated every iteration.
+    auto out = core::pooled_empty(dc.sizes(), dc.scalar_type());
     const ShShapes shapes = shapes_of(dc, rest, offsets);
     AT_DISPATCH_FLOATING_TYPES(dc.scalar_type(), "eval_sh_forward", [&] {
       const auto in = inputs_of<scalar_t>(dc, rest, means, center, offsets);
@@ -191,8 +198,11 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
     const ShShapes shapes = shapes_of(dc, rest, offsets);
     const bool want_means = ctx->needs_input_grad(2) || ctx->needs_input_grad(3);
     const bool want_offsets = ctx->needs_input_grad(4) && offsets.numel() > 0;
-    torch::Tensor d_dc = ctx->needs_input_grad(0) ? torch::empty_like(dc) : torch::Tensor();
-    torch::Tensor d_rest = ctx->needs_input_grad(1) ? torch::zeros_like(rest) : torch::Tensor();
+    torch::Tensor d_dc = ctx->needs_input_grad(0) ? core::pooled_empty(dc.sizes(), dc.scalar_type())
+                                                  : torch::Tensor();
+    torch::Tensor d_rest = ctx->needs_input_grad(1)
+                               ? core::pooled_empty(rest.sizes(), rest.scalar_type())
+                               : torch::Tensor();
     torch::Tensor d_means = want_means ? torch::empty_like(means) : torch::Tensor();
     const int64_t chunks = (shapes.G + kChunk - 1) / kChunk;
     torch::Tensor partials =

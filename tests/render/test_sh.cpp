@@ -2,6 +2,7 @@
 // finite differences, clamping, ignored coefficients, bad shapes.
 #include <gtest/gtest.h>
 
+#include "core/buffer_pool.h"
 #include "core/error.h"
 #include "render/rasterize.h"
 #include "render/sh.h"
@@ -160,6 +161,26 @@ TEST(EvalSh, CoefficientsAboveDegreeAreIgnored) {
     out.sum().backward();
     EXPECT_TRUE(torch::all(c.rest.grad().slice(2, K - 1) == 0).item<bool>());
     EXPECT_TRUE(torch::all(c.offsets.grad().slice(1, K) == 0).item<bool>());
+  }
+}
+
+TEST(EvalSh, ReusedGradientBuffersAreFullyWritten) {
+  // Gradients above 1 MB come from core::pooled_empty, whose blocks hold the
+  // previous user's values: a degree-3 backward leaves non-zero rest
+  // gradients in the block that the degree-1 backward then receives.
+  core::pool_release_idle();
+  for (int degree : {3, 1, 0, 2}) {
+    auto base = random_case(4000, 17, degree, uint64_t(10 + degree));
+    auto weights = torch::randn({4000, 17}, torch::kFloat64);
+    auto fast_case = base.converted(torch::kFloat32, true);
+    auto ref_case = base.converted(torch::kFloat64, true);
+    auto fast_grads = grads_of(run_fast(fast_case), weights, fast_case);
+    auto ref_grads = grads_of(run_reference(ref_case), weights, ref_case);
+    for (size_t i = 0; i < fast_grads.size(); ++i)
+      expect_close(fast_grads[i], ref_grads[i], 2e-5,
+                   std::string("d ") + kLeafNames[i] + " at degree " + std::to_string(degree));
+    const int64_t K = sh_coeff_count(degree);
+    EXPECT_TRUE(torch::all(fast_grads[1].slice(2, K - 1) == 0).item<bool>()) << degree;
   }
 }
 
