@@ -8,11 +8,11 @@
 // ratio, and the fused pass's throughput in pixel-bands per second. Threads:
 // $DDHGS_THREADS, else every core.
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <vector>
 
+#include "bench_timing.h"
 #include "core/threads.h"
 #include "model/ssim.h"
 #include "model/ssim_fused.h"
@@ -20,20 +20,8 @@
 namespace {
 
 using namespace ddhgs;
-using Clock = std::chrono::steady_clock;
 
-template <typename F>
-double median_ms(int reps, F&& f) {
-  f();  // warm-up: buffers and pages
-  std::vector<double> ms;
-  for (int r = 0; r < reps; ++r) {
-    const auto t = Clock::now();
-    f();
-    ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t).count());
-  }
-  std::sort(ms.begin(), ms.end());
-  return ms[ms.size() / 2];
-}
+using bench::median_ms;
 
 void run_case(int64_t w, int64_t h, int64_t n, int reps) {
   torch::manual_seed(n);
