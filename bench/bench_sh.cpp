@@ -9,11 +9,11 @@
 // forward+backward). Backward produces gradients for every input, including
 // the wavelength encoder's band offsets and the means.
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <vector>
 
+#include "bench_timing.h"
 #include "core/threads.h"
 #include "render/rasterize.h"
 #include "render/sh.h"
@@ -22,7 +22,6 @@
 namespace {
 
 using namespace ddhgs;
-using Clock = std::chrono::steady_clock;
 
 struct Inputs {
   torch::Tensor dc, rest, means, center, offsets;
@@ -36,38 +35,28 @@ Inputs make_inputs(int64_t G, int64_t N) {
           leaf(torch::randn({N, 16}) * 0.01)};
 }
 
-template <typename F>
-double median_ms(int reps, F&& f) {
-  f();  // warm-up
-  std::vector<double> ms;
-  for (int r = 0; r < reps; ++r) {
-    const auto t = Clock::now();
-    f();
-    ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t).count());
-  }
-  std::sort(ms.begin(), ms.end());
-  return ms[ms.size() / 2];
-}
+using bench::median_ms;
 
-using ShFn = torch::Tensor (*)(const torch::Tensor&, const torch::Tensor&, const torch::Tensor&,
-                               const torch::Tensor&, int, const torch::Tensor&);
+// Callables, not function pointers: eval_sh has a trailing defaulted argument.
+const auto fast_sh = [](const auto&... args) { return render::eval_sh(args...); };
+const auto reference_sh = [](const auto&... args) { return render::eval_sh_reference(args...); };
 
 void run_case(int64_t G, int64_t N, int degree, int reps) {
   Inputs in = make_inputs(G, N);
-  auto forward = [&](ShFn fn) {
+  auto forward = [&](const auto& fn) {
     torch::NoGradGuard no_grad;
     return fn(in.dc, in.rest, in.means, in.center, degree, in.offsets);
   };
-  auto forward_backward = [&](ShFn fn) {
+  auto forward_backward = [&](const auto& fn) {
     auto out = fn(in.dc, in.rest, in.means, in.center, degree, in.offsets);
     auto grads = torch::autograd::grad({out.sum()}, {in.dc, in.rest, in.means, in.offsets}, {},
                                        false, false, true);
     return grads[0];
   };
-  const double fast_fwd = median_ms(reps, [&] { forward(render::eval_sh); });
-  const double fast_both = median_ms(reps, [&] { forward_backward(render::eval_sh); });
-  const double ref_fwd = median_ms(reps, [&] { forward(render::eval_sh_reference); });
-  const double ref_both = median_ms(reps, [&] { forward_backward(render::eval_sh_reference); });
+  const double fast_fwd = median_ms(reps, [&] { forward(fast_sh); });
+  const double fast_both = median_ms(reps, [&] { forward_backward(fast_sh); });
+  const double ref_fwd = median_ms(reps, [&] { forward(reference_sh); });
+  const double ref_both = median_ms(reps, [&] { forward_backward(reference_sh); });
   const double coefficients = double(G) * double(N) * render::sh_coeff_count(degree);
   std::printf("%7lld %4lld %3d | %9.2f %9.2f | %9.2f %9.2f | %6.1fx %6.1fx | %8.2f\n", (long long)G,
               (long long)N, degree, fast_fwd, fast_both, ref_fwd, ref_both, ref_fwd / fast_fwd,

@@ -67,6 +67,24 @@ void Adam::step() {
   }
 }
 
+std::function<void(int64_t, int64_t, const float*)> Adam::row_step(const std::string& name) {
+  AdamGroup& g = group(name);
+  core::require(g.param.dim() >= 1, "Adam: row_step of '" + name + "' needs rows");
+  ++g.step;
+  const int64_t row = g.param.size(0) > 0 ? g.param.numel() / g.param.size(0) : 0;
+  float* param = g.param.data_ptr<float>();
+  float* exp_avg = g.exp_avg.data_ptr<float>();
+  float* exp_avg_sq = g.exp_avg_sq.data_ptr<float>();
+  const double lr = g.lr;
+  const int64_t step = g.step;
+  const AdamOptions options = options_;
+  return [=](int64_t first, int64_t count, const float* grad) {
+    const int64_t offset = first * row;
+    fused_adam_update(param + offset, grad, exp_avg + offset, exp_avg_sq + offset, count * row, lr,
+                      step, options);
+  };
+}
+
 void Adam::zero_grad() {
   for (auto& g : groups_)
     if (g.param.grad().defined()) g.param.mutable_grad() = torch::Tensor();

@@ -8,6 +8,7 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,15 @@ class Adam {
   // gradients as they are (call zero_grad before the next backward).
   void step();
   void zero_grad();
+
+  // For a group whose gradient arrives in blocks of rows during the backward
+  // (render::eval_sh's rest sink) instead of in .grad(): counts this step and
+  // returns the update of rows [first, first + count) from their gradient
+  // [count, ...], the same arithmetic as step(). Every row once per step, in
+  // any order, from any thread. Valid until the group's tensors are replaced
+  // (densification); step() then skips the group, whose .grad() is undefined.
+  std::function<void(int64_t first, int64_t count, const float* grad)> row_step(
+      const std::string& name);
 
   // Replaces a group's parameter by new_param and its moments by rows of the
   // old moments: new row i takes old row index[i], or zeros where index[i] < 0.

@@ -37,10 +37,12 @@ struct Gaussians {
 
 // SH value at the camera centre (per-band colours) followed by rasterisation.
 // Differentiable in every parameter; see render::rasterize for the sink.
+// sh_rest_sink: see render::eval_sh (training hands the SH rest gradient to Adam).
 render::RenderOutput render_gaussians(const Gaussians& gaussians, const core::Camera& camera,
-                                      const torch::Tensor& background,               // [N]
-                                      const torch::Tensor& band_offsets = {},        // [N, K+1]
-                                      const torch::Tensor& means2d_grad_sink = {});  // [G, 2]
+                                      const torch::Tensor& background,              // [N]
+                                      const torch::Tensor& band_offsets = {},       // [N, K+1]
+                                      const torch::Tensor& means2d_grad_sink = {},  // [G, 2]
+                                      const render::ShRestSink& sh_rest_sink = {});
 
 // Detached float32 copies; sh_rest keeps all K coefficients of the max degree.
 // band_offsets (the wavelength encoder's [N, K+1]) are added to every

@@ -7,15 +7,17 @@ namespace ddhgs::model {
 render::RenderOutput render_gaussians(const Gaussians& gaussians, const core::Camera& camera,
                                       const torch::Tensor& background,
                                       const torch::Tensor& band_offsets,
-                                      const torch::Tensor& means2d_grad_sink) {
+                                      const torch::Tensor& means2d_grad_sink,
+                                      const render::ShRestSink& sh_rest_sink) {
   core::Vec3 c = camera.center();
   auto center = torch::tensor({float(c.x), float(c.y), float(c.z)});
   // A degree-0 model has an empty rest tensor; eval_sh takes that as undefined.
   torch::Tensor rest = gaussians.sh_rest.defined() && gaussians.sh_rest.size(2) > 0
                            ? gaussians.sh_rest
                            : torch::Tensor();
-  torch::Tensor colors = render::eval_sh(gaussians.sh_dc, rest, gaussians.means, center,
-                                         gaussians.active_sh_degree, band_offsets);
+  torch::Tensor colors =
+      render::eval_sh(gaussians.sh_dc, rest, gaussians.means, center, gaussians.active_sh_degree,
+                      band_offsets, rest.defined() ? sh_rest_sink : render::ShRestSink());
   return render::rasterize(gaussians.means, gaussians.log_scales, gaussians.quats,
                            gaussians.logit_opacities, colors, render::RenderCamera::from(camera),
                            background, means2d_grad_sink);

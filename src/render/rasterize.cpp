@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/stage_timer.h"
 #include "core/threads.h"
 #include "render/blend.h"
 #include "render/project.h"
@@ -114,6 +115,7 @@ class RasterizeFunction : public torch::autograd::Function<RasterizeFunction> {
                                const Tensor& quats, const Tensor& logit_opacities,
                                const Tensor& colors, const Tensor& background, const Tensor& sink,
                                const RenderCamera& cam) {
+    core::StageScope stage("rasterize forward");
     Projected p = project_forward(means, log_scales, quats, logit_opacities, cam);
     BlendForward b =
         blend_forward(p, colors, background, bins_for(p, cam), cam.width, cam.height, true);
@@ -127,6 +129,7 @@ class RasterizeFunction : public torch::autograd::Function<RasterizeFunction> {
   }
 
   static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    core::StageScope stage("rasterize backward");
     const variable_list s = ctx->get_saved_variables();
     const RenderCamera cam = unpack(ctx->saved_data["camera"].toDoubleVector());
     const Projected p{s[6], s[7], s[8], s[9], s[10]};

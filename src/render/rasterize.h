@@ -7,6 +7,8 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <functional>
+
 #include "core/camera.h"
 
 namespace ddhgs::render {
@@ -47,10 +49,21 @@ RenderOutput rasterize(const torch::Tensor& means,            // [G, 3]
 // offsets, added without materialising a [G, N, K] copy), and
 // dir_g = normalize(means[g] - camera_center). Coefficients above `degree`
 // are ignored. Differentiable in sh_dc, sh_rest, band_offsets and means.
-torch::Tensor eval_sh(const torch::Tensor& sh_dc,          // [G, N]
-                      const torch::Tensor& sh_rest,        // [G, N, K-1] or undefined
-                      const torch::Tensor& means,          // [G, 3]
-                      const torch::Tensor& camera_center,  // [3]
-                      int degree, const torch::Tensor& band_offsets = {});  // [N, K] or undefined
+//
+// rest_sink (training): the backward hands dL/d(sh_rest) to it in blocks of
+// Gaussians instead of returning a [G, N, K-1] gradient (sh_rest.grad() stays
+// undefined), so an optimizer can update those rows while they are in cache
+// and no gradient of the model's largest tensor is stored. It is called once
+// per block, possibly from several threads at once, after the block's other
+// gradients (which read sh_rest) are computed; it may modify those rows of
+// sh_rest. Needs a contiguous float32 sh_rest.
+using ShRestSink = std::function<void(int64_t first, int64_t count,
+                                      const float* grad)>;  // grad: [count, N, K-1]
+torch::Tensor eval_sh(const torch::Tensor& sh_dc,           // [G, N]
+                      const torch::Tensor& sh_rest,         // [G, N, K-1] or undefined
+                      const torch::Tensor& means,           // [G, 3]
+                      const torch::Tensor& camera_center,   // [3]
+                      int degree, const torch::Tensor& band_offsets = {},  // [N, K] or undefined
+                      const ShRestSink& rest_sink = {});
 
 }  // namespace ddhgs::render

@@ -5,7 +5,11 @@
 
 #include <ATen/Parallel.h>
 
+#include <type_traits>
+
+#include "core/buffer_pool.h"
 #include "core/error.h"
+#include "core/stage_timer.h"
 #include "render/rasterize.h"
 
 namespace ddhgs::render {
@@ -75,55 +79,89 @@ void forward_kernel(const ShInputs<T>& in, const ShShapes& s, T* out) {
 template <typename T>
 struct ShGrads {
   T* dc = nullptr;       // [G, N]
-  T* rest = nullptr;     // [G, N, rest_stride], zero-initialised
+  T* rest = nullptr;     // [G, N, rest_stride], every entry written
   T* means = nullptr;    // [G, 3]
   T* offsets = nullptr;  // [chunks, N, K] per-chunk partial sums, zero-initialised
+  // Instead of rest: receives the rest gradient in blocks of kSinkRows
+  // Gaussians (float32 only), after their other gradients are computed.
+  const ShRestSink* rest_sink = nullptr;
 };
+
+// Gaussians per block handed to a rest sink: the block's gradient, about
+// 270 KB at 141 bands, is still in cache when the sink reads it.
+constexpr int64_t kSinkRows = 32;
+
+template <typename T>
+std::vector<T>& sink_block() {
+  thread_local std::vector<T> block;
+  return block;
+}
+
+template <int Degree, typename T>
+void backward_gaussian(const ShInputs<T>& in, const ShShapes& s, const T* grad_out,
+                       const ShGrads<T>& gr, int64_t g, T* rest_grad, T* offsets_partial) {
+  constexpr int K = sh_coeff_count(Degree);
+  T dir[3], Y[16], dY[16][3];
+  const T length = view_direction(in.means + 3 * g, in.center, dir);
+  sh_basis<Degree>(dir[0], dir[1], dir[2], Y, dY);
+  // dL/dY[k] summed over bands, for the direction gradient.
+  T dL_dY[16] = {};
+  for (int64_t n = 0; n < s.N; ++n) {
+    // Matches clamp_min's convention: the gradient passes at exactly 0.
+    const bool clamped = band_value<K>(in, s, g, n, Y) < T(0);
+    const T gv = clamped ? T(0) : grad_out[g * s.N + n];
+    if (gr.dc) gr.dc[g * s.N + n] = gv * Y[0];
+    if (rest_grad) {
+      // Every entry is written (the buffer is reused, not zeroed):
+      // coefficients above the degree get zero.
+      T* row = rest_grad + n * s.rest_stride;
+      int64_t k = 1;
+      if (gv != T(0))
+        for (; k < K; ++k) row[k - 1] = gv * Y[k];
+      std::fill(row + k - 1, row + s.rest_stride, T(0));
+    }
+    if (gv == T(0)) continue;
+    if (offsets_partial) {
+      T* partial = offsets_partial + n * K;
+      for (int k = 0; k < K; ++k) partial[k] += gv * Y[k];
+    }
+    if (gr.means && K > 1) {
+      const T* rest = in.rest + (g * s.N + n) * s.rest_stride;
+      const T* offset = in.offsets ? in.offsets + n * s.offset_stride : nullptr;
+      for (int k = 1; k < K; ++k) dL_dY[k] += gv * (rest[k - 1] + (offset ? offset[k] : T(0)));
+    }
+  }
+  if (!gr.means) return;
+  T dL_ddir[3] = {0, 0, 0};
+  for (int k = 1; k < K; ++k)
+    for (int a = 0; a < 3; ++a) dL_ddir[a] += dL_dY[k] * dY[k][a];
+  // d(d/|d|)/dd = (I - dir dir^T) / |d|.
+  const T along = dL_ddir[0] * dir[0] + dL_ddir[1] * dir[1] + dL_ddir[2] * dir[2];
+  const T inv = length > T(0) ? T(1) / length : T(0);
+  for (int a = 0; a < 3; ++a) gr.means[3 * g + a] = (dL_ddir[a] - along * dir[a]) * inv;
+}
 
 template <int Degree, typename T>
 void backward_kernel(const ShInputs<T>& in, const ShShapes& s, const T* grad_out,
                      const ShGrads<T>& gr) {
-  constexpr int K = sh_coeff_count(Degree);
   const int64_t chunks = (s.G + kChunk - 1) / kChunk;
+  const int64_t row = s.N * s.rest_stride;  // rest gradient floats per Gaussian
   at::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
+    std::vector<T>& block = sink_block<T>();
+    if (gr.rest_sink) block.resize(size_t(kSinkRows * row));
     for (int64_t chunk = chunk_begin; chunk < chunk_end; ++chunk) {
-      T* offsets_partial = gr.offsets ? gr.offsets + chunk * s.N * K : nullptr;
+      T* offsets_partial = gr.offsets ? gr.offsets + chunk * s.N * sh_coeff_count(Degree) : nullptr;
       const int64_t g_end = std::min(s.G, (chunk + 1) * kChunk);
-      for (int64_t g = chunk * kChunk; g < g_end; ++g) {
-        T dir[3], Y[16], dY[16][3];
-        const T length = view_direction(in.means + 3 * g, in.center, dir);
-        sh_basis<Degree>(dir[0], dir[1], dir[2], Y, dY);
-        // dL/dY[k] summed over bands, for the direction gradient.
-        T dL_dY[16] = {};
-        for (int64_t n = 0; n < s.N; ++n) {
-          // Matches clamp_min's convention: the gradient passes at exactly 0.
-          const bool clamped = band_value<K>(in, s, g, n, Y) < T(0);
-          const T gv = clamped ? T(0) : grad_out[g * s.N + n];
-          if (gr.dc) gr.dc[g * s.N + n] = gv * Y[0];
-          if (gv == T(0)) continue;
-          if (gr.rest) {
-            T* rest_grad = gr.rest + (g * s.N + n) * s.rest_stride;
-            for (int k = 1; k < K; ++k) rest_grad[k - 1] = gv * Y[k];
-          }
-          if (offsets_partial) {
-            T* partial = offsets_partial + n * K;
-            for (int k = 0; k < K; ++k) partial[k] += gv * Y[k];
-          }
-          if (gr.means && K > 1) {
-            const T* rest = in.rest + (g * s.N + n) * s.rest_stride;
-            const T* offset = in.offsets ? in.offsets + n * s.offset_stride : nullptr;
-            for (int k = 1; k < K; ++k)
-              dL_dY[k] += gv * (rest[k - 1] + (offset ? offset[k] : T(0)));
-          }
+      for (int64_t first = chunk * kChunk; first < g_end; first += kSinkRows) {
+        const int64_t last = std::min(g_end, first + kSinkRows);
+        for (int64_t g = first; g < last; ++g) {
+          T* rest_grad = gr.rest_sink ? block.data() + (g - first) * row
+                         : gr.rest    ? gr.rest + g * row
+                                      : nullptr;
+          backward_gaussian<Degree>(in, s, grad_out, gr, g, rest_grad, offsets_partial);
         }
-        if (!gr.means) continue;
-        T dL_ddir[3] = {0, 0, 0};
-        for (int k = 1; k < K; ++k)
-          for (int a = 0; a < 3; ++a) dL_ddir[a] += dL_dY[k] * dY[k][a];
-        // d(d/|d|)/dd = (I - dir dir^T) / |d|.
-        const T along = dL_ddir[0] * dir[0] + dL_ddir[1] * dir[1] + dL_ddir[2] * dir[2];
-        const T inv = length > T(0) ? T(1) / length : T(0);
-        for (int a = 0; a < 3; ++a) gr.means[3 * g + a] = (dL_ddir[a] - along * dir[a]) * inv;
+        if constexpr (std::is_same_v<T, float>)
+          if (gr.rest_sink) (*gr.rest_sink)(first, last - first, block.data());
       }
     }
   });
@@ -156,6 +194,12 @@ ShShapes shapes_of(const torch::Tensor& dc, const torch::Tensor& rest,
   return {dc.size(0), dc.size(1), rest.size(2), offsets.numel() ? offsets.size(1) : 0};
 }
 
+// Carries a rest sink from the forward to the backward in saved_data.
+struct SinkHolder : torch::CustomClassHolder {
+  explicit SinkHolder(ShRestSink s) : sink(std::move(s)) {}
+  ShRestSink sink;
+};
+
 class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
  public:
   // Inputs are contiguous, of one floating dtype; rest is [G, N, R] (R may be
@@ -163,10 +207,15 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
   static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& dc,
                                const torch::Tensor& rest, const torch::Tensor& means,
                                const torch::Tensor& center, const torch::Tensor& offsets,
-                               int degree) {
+                               int degree, const ShRestSink& rest_sink) {
+    core::StageScope stage("sh forward");
     ctx->save_for_backward({dc, rest, means, center, offsets});
     ctx->saved_data["degree"] = degree;
-    auto out = torch::empty_like(dc);
+    if (rest_sink)
+      ctx->saved_data["rest_sink"] =
+          c10::IValue::make_capsule(c10::make_intrusive<SinkHolder>(rest_sink));
+    // Pooled: the colours and the SH gradients are allocated every iteration.
+    auto out = core::pooled_empty(dc.sizes(), dc.scalar_type());
     const ShShapes shapes = shapes_of(dc, rest, offsets);
     AT_DISPATCH_FLOATING_TYPES(dc.scalar_type(), "eval_sh_forward", [&] {
       const auto in = inputs_of<scalar_t>(dc, rest, means, center, offsets);
@@ -179,6 +228,7 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
 
   static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
                                                  torch::autograd::variable_list grad_outputs) {
+    core::StageScope stage("sh backward");
     const auto saved = ctx->get_saved_variables();
     const auto &dc = saved[0], &rest = saved[1], &means = saved[2], &center = saved[3],
                &offsets = saved[4];
@@ -188,8 +238,15 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
     const ShShapes shapes = shapes_of(dc, rest, offsets);
     const bool want_means = ctx->needs_input_grad(2) || ctx->needs_input_grad(3);
     const bool want_offsets = ctx->needs_input_grad(4) && offsets.numel() > 0;
-    torch::Tensor d_dc = ctx->needs_input_grad(0) ? torch::empty_like(dc) : torch::Tensor();
-    torch::Tensor d_rest = ctx->needs_input_grad(1) ? torch::zeros_like(rest) : torch::Tensor();
+    torch::Tensor d_dc = ctx->needs_input_grad(0) ? core::pooled_empty(dc.sizes(), dc.scalar_type())
+                                                  : torch::Tensor();
+    c10::intrusive_ptr<SinkHolder> sink;
+    if (ctx->needs_input_grad(1) && ctx->saved_data.count("rest_sink"))
+      sink =
+          c10::static_intrusive_pointer_cast<SinkHolder>(ctx->saved_data["rest_sink"].toCapsule());
+    torch::Tensor d_rest = ctx->needs_input_grad(1) && !sink
+                               ? core::pooled_empty(rest.sizes(), rest.scalar_type())
+                               : torch::Tensor();
     torch::Tensor d_means = want_means ? torch::empty_like(means) : torch::Tensor();
     const int64_t chunks = (shapes.G + kChunk - 1) / kChunk;
     torch::Tensor partials =
@@ -201,6 +258,7 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
       if (d_rest.defined() && d_rest.numel()) grads.rest = d_rest.data_ptr<scalar_t>();
       if (d_means.defined()) grads.means = d_means.data_ptr<scalar_t>();
       if (partials.defined()) grads.offsets = partials.data_ptr<scalar_t>();
+      if (sink && rest.numel()) grads.rest_sink = &sink->sink;
       dispatch_degree(degree, [&](auto deg) {
         backward_kernel<decltype(deg)::value>(in, shapes, grad_out.data_ptr<scalar_t>(), grads);
       });
@@ -214,7 +272,7 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
     torch::Tensor d_center;
     if (ctx->needs_input_grad(3)) d_center = -d_means.sum(0);
     if (!ctx->needs_input_grad(2)) d_means = torch::Tensor();
-    return {d_dc, d_rest, d_means, d_center, d_offsets, torch::Tensor()};
+    return {d_dc, d_rest, d_means, d_center, d_offsets, torch::Tensor(), torch::Tensor()};
   }
 };
 
@@ -260,8 +318,11 @@ void check_shapes(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
 
 torch::Tensor eval_sh(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
                       const torch::Tensor& means, const torch::Tensor& camera_center, int degree,
-                      const torch::Tensor& band_offsets) {
+                      const torch::Tensor& band_offsets, const ShRestSink& rest_sink) {
   check_shapes(sh_dc, sh_rest, means, camera_center, degree, band_offsets);
+  core::require(!rest_sink || (sh_rest.defined() && sh_rest.scalar_type() == torch::kFloat32 &&
+                               sh_rest.is_contiguous()),
+                "eval_sh: a rest sink needs a contiguous float32 sh_rest");
   const int64_t G = sh_dc.size(0), N = sh_dc.size(1);
   // Absent inputs become empty tensors so the autograd Function always sees
   // the same five tensor arguments.
@@ -269,7 +330,7 @@ torch::Tensor eval_sh(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
   auto offsets =
       band_offsets.defined() ? band_offsets.contiguous() : torch::zeros({N, 0}, sh_dc.options());
   return EvalShFunction::apply(sh_dc.contiguous(), rest, means.contiguous(),
-                               camera_center.reshape({3}).contiguous(), offsets, degree);
+                               camera_center.reshape({3}).contiguous(), offsets, degree, rest_sink);
 }
 
 }  // namespace ddhgs::render

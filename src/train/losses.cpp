@@ -2,7 +2,11 @@
 
 #include <cmath>
 
+#include <ATen/Parallel.h>
+
+#include "core/stage_timer.h"
 #include "model/ssim.h"
+#include "model/ssim_fused.h"
 #include "train/spectral_loss.h"
 
 namespace ddhgs::train {
@@ -27,15 +31,66 @@ torch::Tensor dssim_loss(const torch::Tensor& render, const torch::Tensor& targe
   return 1 - model::ssim(render, target);
 }
 
+namespace {
+
+// "l1" or "ssim" of the fused pass over the inputs, run once per evaluation.
+torch::Tensor fused(const LossInputs& in, const std::string& which) {
+  if (!in.shared.count(which)) {
+    const model::PhotometricValues v = model::l1_and_ssim(in.render, in.target);
+    in.shared["l1"] = v.l1;
+    in.shared["ssim"] = v.ssim;
+  }
+  return in.shared.at(which);
+}
+
+// Sum of squared differences of two contiguous float32 tensors, in double.
+// Fixed 64k-element chunks added in order: the same bits for any thread count.
+double squared_error_sum(const float* a, const float* b, int64_t n) {
+  constexpr int64_t kChunk = 1 << 16;
+  std::vector<double> partial(size_t((n + kChunk - 1) / kChunk), 0.0);
+  at::parallel_for(0, int64_t(partial.size()), 1, [&](int64_t begin, int64_t end) {
+    for (int64_t c = begin; c < end; ++c) {
+      double sum = 0;
+      for (int64_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {
+        const double d = double(a[i]) - double(b[i]);
+        sum += d * d;
+      }
+      partial[size_t(c)] = sum;
+    }
+  });
+  double total = 0;
+  for (double p : partial) total += p;
+  return total;
+}
+
+}  // namespace
+
 std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight) {
-  return {
-      {"l1", l1_weight, [](const LossInputs& in) { return train::l1_loss(in.render, in.target); }},
-      {"dssim", dssim_weight,
-       [](const LossInputs& in) { return train::dssim_loss(in.render, in.target); }}};
+  // Without the SSIM term the fused pass would compute it for nothing.
+  if (dssim_weight == 0)
+    return {{"l1", l1_weight,
+             [](const LossInputs& in) {
+               core::StageScope stage("l1 forward");
+               return train::l1_loss(in.render, in.target);
+             }},
+            {"dssim", dssim_weight, [](const LossInputs& in) {
+               core::StageScope stage("ssim forward");
+               return train::dssim_loss(in.render, in.target);
+             }}};
+  return {{"l1", l1_weight, [](const LossInputs& in) { return fused(in, "l1"); }},
+          {"dssim", dssim_weight, [](const LossInputs& in) { return 1 - fused(in, "ssim"); }}};
 }
 
 double psnr(const torch::Tensor& render, const torch::Tensor& target) {
-  const double mse = (render.detach() - target).pow(2).mean().item<double>();
+  double mse = 0;
+  if (render.scalar_type() == torch::kFloat32 && target.scalar_type() == torch::kFloat32 &&
+      render.is_contiguous() && target.is_contiguous() && render.sizes() == target.sizes() &&
+      render.numel() > 0) {
+    mse = squared_error_sum(render.data_ptr<float>(), target.data_ptr<float>(), render.numel()) /
+          double(render.numel());
+  } else {
+    mse = (render.detach() - target).pow(2).mean().item<double>();
+  }
   return 10.0 * std::log10(1.0 / std::max(mse, 1e-12));
 }
 

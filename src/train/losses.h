@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,9 @@ struct LossInputs {
   // Seed for a term's own randomness (crops, noise), a function of the run's
   // seed and the iteration only, so a resumed run draws what a straight one would.
   uint64_t seed = 0;
+  // Values several terms share, filled by the first term that needs them
+  // during one evaluate_losses call (the L1 and SSIM of one fused pass).
+  mutable std::map<std::string, torch::Tensor> shared = {};
 };
 
 struct LossTerm {
@@ -35,11 +39,14 @@ struct LossValues {
 // Sums weight * term over the terms whose weight is not zero.
 LossValues evaluate_losses(const std::vector<LossTerm>& terms, const LossInputs& inputs);
 
-// Mean absolute error over every pixel and band.
+// Mean absolute error over every pixel and band (LibTorch ops; the reference
+// twin of the fused pass the baseline terms use).
 torch::Tensor l1_loss(const torch::Tensor& render, const torch::Tensor& target);
-// 1 - SSIM (model/ssim.h) over all bands.
+// 1 - SSIM (model/ssim.h) over all bands (LibTorch ops, likewise).
 torch::Tensor dssim_loss(const torch::Tensor& render, const torch::Tensor& target);
-// The 3DGS baseline terms: "l1" and "dssim" with the given weights.
+// The 3DGS baseline terms: "l1" and "dssim" with the given weights. With a
+// non-zero dssim weight both come from one fused pass (model/ssim_fused.h),
+// which needs a target that does not require a gradient.
 std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight);
 
 // The DD-HGS spectral term "spectral" (train/spectral_loss.h), weighted by
@@ -47,7 +54,8 @@ std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight);
 // loss.spectral_temperature from the same config object.
 LossTerm spectral_term(const nlohmann::json& loss_config);
 
-// 10 log10(1 / MSE) over all elements, data range 1 (dB).
+// 10 log10(1 / MSE) over all elements, data range 1 (dB). Reads the two
+// tensors in place when they are contiguous float32 (no temporaries).
 double psnr(const torch::Tensor& render, const torch::Tensor& target);
 
 }  // namespace ddhgs::train

@@ -46,6 +46,9 @@ class Trainer {
   TrainStatus run();
   // The signal that interrupted run() (SIGINT, SIGTERM), 0 for request_stop().
   static int stop_signal();
+  // One Gaussian iteration after state().iteration, without metrics,
+  // checkpoints or outputs (benchmarks); returns its metrics record.
+  nlohmann::json advance();
 
   // Loss terms; later components append their own before run().
   std::vector<LossTerm>& losses() { return losses_; }

@@ -67,6 +67,37 @@ TEST(Cube, IntegerCubesScaleByTheirTypeMaximum) {
   EXPECT_FLOAT_EQ(f[0][1][0].item<float>(), 32768.0f / 4095.0f);
 }
 
+// The one-pass conversion of the common types (no ignore value) against the
+// general LibTorch path it replaces: the same float bits, large enough for
+// the pooled buffer, and the stored cube untouched.
+TEST(Cube, FastConversionHasTheBitsOfTheGeneralPath) {
+  torch::manual_seed(5);
+  const std::vector<int64_t> shape = {71, 33, 141};  // 1.3 MB as float: pooled
+  struct Kind {
+    SampleType type;
+    torch::Tensor data;
+  };
+  const std::vector<Kind> kinds = {
+      {SampleType::U8, torch::randint(0, 256, shape).to(torch::kUInt8)},
+      {SampleType::U16, torch::randint(0, 65536, shape).to(torch::kInt32).to(torch::kInt16)},
+      {SampleType::I16, torch::randint(-32768, 32768, shape).to(torch::kInt16)},
+      {SampleType::F32, torch::rand(shape) * 3}};
+  for (const Kind& k : kinds)
+    for (double scale : {0.0, 4095.0, 1.0, 0.7}) {
+      const torch::Tensor before = k.data.clone();
+      const torch::Tensor fast = cube_to_float(make_cube(k.data, k.type), scale);
+      // The general path: widen (uint16 through int32), then divide by the scalar.
+      torch::Tensor values = k.type == SampleType::U16
+                                 ? k.data.to(torch::kInt32).bitwise_and(0xFFFF).to(torch::kFloat)
+                                 : k.data.to(torch::kFloat);
+      const torch::Tensor general = values / (scale <= 0 ? default_scale(k.type) : scale);
+      EXPECT_EQ(fast.scalar_type(), torch::kFloat);
+      EXPECT_TRUE(fast.is_contiguous());
+      EXPECT_TRUE(torch::equal(fast, general)) << to_string(k.type) << " scale " << scale;
+      EXPECT_TRUE(torch::equal(k.data, before));
+    }
+}
+
 TEST(Cube, FloatCubesAreCopiedNotModified) {
   torch::Tensor data = torch::tensor({0.5f, -1.0f, 0.25f}).view({1, 3, 1});
   Cube cube = make_cube(data, SampleType::F32);

@@ -43,6 +43,34 @@ TEST(Adam, FusedStepMatchesTorchAdamOverSeveralSteps) {
   EXPECT_GT((a - a0).abs().max().item<double>(), 1e-3);
 }
 
+TEST(Adam, RowStepInBlocksEqualsTheWholeStepBitForBit) {
+  torch::manual_seed(9);
+  auto start = torch::randn({50, 7, 15});
+  auto whole = start.clone().requires_grad_(true);
+  auto rows = start.clone().requires_grad_(true);
+  model::Adam a({0.9, 0.999, 1e-15}), b({0.9, 0.999, 1e-15});
+  a.add("p", whole, 2e-3);
+  b.add("p", rows, 2e-3);
+  // Blocks of uneven sizes, delivered out of order, as threads would.
+  const std::vector<std::pair<int64_t, int64_t>> blocks = {{32, 18}, {0, 7}, {7, 25}};
+  for (int step = 0; step < 4; ++step) {
+    auto grad = torch::randn(start.sizes()) * (step + 1);
+    if (step == 2) grad.slice(0, 10, 20).zero_();  // rows the view did not touch
+    whole.mutable_grad() = grad.clone();
+    a.step();
+    a.zero_grad();
+    auto update = b.row_step("p");
+    for (const auto& [first, count] : blocks)
+      update(first, count, grad.slice(0, first, first + count).contiguous().data_ptr<float>());
+    b.step();  // skips the group: its .grad() is undefined
+  }
+  EXPECT_EQ(a.group("p").step, 4);
+  EXPECT_EQ(b.group("p").step, 4);
+  EXPECT_TRUE(torch::equal(whole, rows));
+  EXPECT_TRUE(torch::equal(a.group("p").exp_avg, b.group("p").exp_avg));
+  EXPECT_TRUE(torch::equal(a.group("p").exp_avg_sq, b.group("p").exp_avg_sq));
+}
+
 TEST(Adam, SkipsParametersWithoutGradients) {
   auto p = torch::ones({4}).requires_grad_(true);
   model::Adam adam;

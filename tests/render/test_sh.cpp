@@ -2,6 +2,9 @@
 // finite differences, clamping, ignored coefficients, bad shapes.
 #include <gtest/gtest.h>
 
+#include <mutex>
+
+#include "core/buffer_pool.h"
 #include "core/error.h"
 #include "render/rasterize.h"
 #include "render/sh.h"
@@ -160,6 +163,56 @@ TEST(EvalSh, CoefficientsAboveDegreeAreIgnored) {
     out.sum().backward();
     EXPECT_TRUE(torch::all(c.rest.grad().slice(2, K - 1) == 0).item<bool>());
     EXPECT_TRUE(torch::all(c.offsets.grad().slice(1, K) == 0).item<bool>());
+  }
+}
+
+TEST(EvalSh, ReusedGradientBuffersAreFullyWritten) {
+  // Gradients above 1 MB come from core::pooled_empty, whose blocks hold the
+  // previous user's values: a degree-3 backward leaves non-zero rest
+  // gradients in the block that the degree-1 backward then receives.
+  core::pool_release_idle();
+  for (int degree : {3, 1, 0, 2}) {
+    auto base = random_case(4000, 17, degree, uint64_t(10 + degree));
+    auto weights = torch::randn({4000, 17}, torch::kFloat64);
+    auto fast_case = base.converted(torch::kFloat32, true);
+    auto ref_case = base.converted(torch::kFloat64, true);
+    auto fast_grads = grads_of(run_fast(fast_case), weights, fast_case);
+    auto ref_grads = grads_of(run_reference(ref_case), weights, ref_case);
+    for (size_t i = 0; i < fast_grads.size(); ++i)
+      expect_close(fast_grads[i], ref_grads[i], 2e-5,
+                   std::string("d ") + kLeafNames[i] + " at degree " + std::to_string(degree));
+    const int64_t K = sh_coeff_count(degree);
+    EXPECT_TRUE(torch::all(fast_grads[1].slice(2, K - 1) == 0).item<bool>()) << degree;
+  }
+}
+
+TEST(EvalSh, RestSinkReceivesTheSameGradientInBlocks) {
+  for (int degree : {0, 1, 2, 3}) {
+    // 2500 Gaussians: several 1024-Gaussian chunks and 32-Gaussian blocks.
+    auto base = random_case(2500, 17, degree, uint64_t(20 + degree));
+    auto weights = torch::randn({2500, 17}, torch::kFloat64);
+    auto plain = base.converted(torch::kFloat32, true);
+    auto grads = grads_of(run_fast(plain), weights, plain);
+
+    auto sunk = base.converted(torch::kFloat32, true);
+    auto received = torch::zeros_like(sunk.rest);
+    auto times = torch::zeros({2500}, torch::kInt32);
+    std::mutex mutex;
+    const ShRestSink sink = [&](int64_t first, int64_t count, const float* grad) {
+      std::lock_guard<std::mutex> lock(mutex);
+      received.slice(0, first, first + count)
+          .copy_(torch::from_blob(const_cast<float*>(grad), {count, 17, 15}));
+      times.slice(0, first, first + count) += 1;
+    };
+    auto out = eval_sh(sunk.dc, sunk.rest, sunk.means, sunk.center, degree, sunk.offsets, sink);
+    auto leaves = sunk.leaves();
+    auto sunk_grads = torch::autograd::grad({(out * weights.to(torch::kFloat32)).sum()}, leaves, {},
+                                            false, false, /*allow_unused=*/true);
+    EXPECT_TRUE(torch::all(times == 1).item<bool>()) << "every Gaussian exactly once";
+    EXPECT_FALSE(sunk_grads[1].defined()) << "no rest gradient tensor";
+    EXPECT_TRUE(torch::equal(received, grads[1])) << degree;
+    for (size_t i : {0u, 2u, 3u, 4u})
+      EXPECT_TRUE(torch::equal(sunk_grads[i], grads[i])) << kLeafNames[i] << " " << degree;
   }
 }
 

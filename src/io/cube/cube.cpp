@@ -5,6 +5,7 @@
 
 #include <cctype>
 
+#include "core/buffer_pool.h"
 #include "core/error.h"
 #include "io/cube/cube_formats.h"
 
@@ -255,9 +256,42 @@ CubeInfo probe_cube(const fs::path& path, const CubeReadOptions& options) {
   throw core::Error(path, "unknown cube format");
 }
 
+namespace {
+
+// samples[i] / scale in float32, the arithmetic of the general path below
+// (a float tensor divided by a scalar divides by float(scale)), in one pass
+// into a pooled buffer: training converts one view per iteration.
+template <typename T>
+torch::Tensor samples_to_float(const torch::Tensor& raw, float scale) {
+  torch::Tensor out = core::pooled_empty(raw.sizes());
+  const T* src = static_cast<const T*>(raw.data_ptr());
+  float* dst = out.data_ptr<float>();
+  at::parallel_for(0, raw.numel(), 1 << 16, [&](int64_t begin, int64_t end) {
+    for (int64_t i = begin; i < end; ++i) dst[i] = float(src[i]) / scale;
+  });
+  return out;
+}
+
+}  // namespace
+
 torch::Tensor cube_to_float(const Cube& cube, double scale) {
   if (scale <= 0) scale = default_scale(cube.type);
   torch::Tensor raw = cube.data;
+  if (!cube.ignore_value && raw.is_contiguous() &&
+      raw.scalar_type() == detail::tensor_dtype(cube.type)) {
+    switch (cube.type) {
+      case SampleType::U8:
+        return samples_to_float<uint8_t>(raw, float(scale));
+      case SampleType::U16:  // kept in an int16 tensor (see cube.h)
+        return samples_to_float<uint16_t>(raw, float(scale));
+      case SampleType::I16:
+        return samples_to_float<int16_t>(raw, float(scale));
+      case SampleType::F32:
+        return samples_to_float<float>(raw, float(scale));
+      default:
+        break;
+    }
+  }
   // Wide types go through double: int32 and float64 samples lose digits in float32
   // before the ignore-value comparison.
   bool wide = cube.type == SampleType::I32 || cube.type == SampleType::F64;

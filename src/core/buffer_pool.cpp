@@ -1,0 +1,111 @@
+#include "core/buffer_pool.h"
+
+#include <cstdint>
+#include <cstdlib>
+#include <mutex>
+#include <new>
+#include <vector>
+
+namespace ddhgs::core {
+namespace {
+
+// A block is handed out for requests between 4/5 of its size and its size,
+// so buffers that shrink a little (pruned Gaussians) keep their block.
+constexpr size_t kFitNumerator = 5, kFitDenominator = 4;
+// Blocks not handed out during this many requests are freed: sizes that
+// stopped being asked for (the Gaussian count grew) do not linger.
+constexpr uint64_t kMaxIdleRequests = 64;
+constexpr size_t kAlignment = 64;
+
+struct Block {
+  void* data;
+  size_t bytes;
+  uint64_t released_at;  // request count when it came back
+};
+
+class Pool {
+ public:
+  void* take(size_t bytes, size_t& capacity) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++requests_;
+    size_t best = blocks_.size();
+    for (size_t i = 0; i < blocks_.size(); ++i) {
+      const size_t b = blocks_[i].bytes;
+      if (b >= bytes && b * kFitDenominator <= bytes * kFitNumerator &&
+          (best == blocks_.size() || b < blocks_[best].bytes))
+        best = i;
+    }
+    if (best < blocks_.size()) {
+      Block found = blocks_[best];
+      blocks_.erase(blocks_.begin() + std::ptrdiff_t(best));
+      capacity = found.bytes;
+      return found.data;
+    }
+    evict_stale();
+    capacity = (bytes + kAlignment - 1) / kAlignment * kAlignment;
+    void* data = std::aligned_alloc(kAlignment, capacity);
+    if (!data) throw std::bad_alloc();
+    return data;
+  }
+
+  void give_back(void* data, size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    blocks_.push_back({data, bytes, requests_});
+  }
+
+  size_t idle_bytes() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    size_t total = 0;
+    for (const Block& b : blocks_) total += b.bytes;
+    return total;
+  }
+
+  void release_idle() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const Block& b : blocks_) std::free(b.data);
+    blocks_.clear();
+  }
+
+ private:
+  void evict_stale() {
+    for (size_t i = blocks_.size(); i-- > 0;) {
+      if (requests_ - blocks_[i].released_at <= kMaxIdleRequests) continue;
+      std::free(blocks_[i].data);
+      blocks_.erase(blocks_.begin() + std::ptrdiff_t(i));
+    }
+  }
+
+  std::mutex mutex_;
+  std::vector<Block> blocks_;
+  uint64_t requests_ = 0;
+};
+
+// Never destroyed: pooled tensors may outlive static destruction order.
+Pool& pool() {
+  static Pool* p = new Pool();
+  return *p;
+}
+
+}  // namespace
+
+at::Tensor pooled_empty(at::IntArrayRef sizes, at::ScalarType dtype) {
+  int64_t numel = 1;
+  for (int64_t s : sizes) numel *= s;
+  const size_t bytes = size_t(numel) * at::elementSize(dtype);
+  if (bytes < kPoolMinBytes) return at::empty(sizes, at::TensorOptions().dtype(dtype));
+  size_t capacity = 0;
+  void* data = pool().take(bytes, capacity);
+  return at::from_blob(
+      data, sizes, [capacity](void* p) { pool().give_back(p, capacity); },
+      at::TensorOptions().dtype(dtype));
+}
+
+size_t pool_idle_bytes() {
+  return pool().idle_bytes();
+}
+
+void pool_release_idle() {
+  pool().release_idle();
+}
+
+}  // namespace ddhgs::core

@@ -1,0 +1,299 @@
+// Fused L1 + SSIM over channels-last images, value and gradient.
+//
+// Per band and valid window q (top-left corner), with the 11 x 11 Gaussian
+// window w and moments mu_x, mu_y, s_xx, s_yy, s_xy (window sums of x, y,
+// x^2, y^2, x y; computed about kShift, see below):
+//   S = A1 A2 / (B1 B2), A1 = 2 mu_x mu_y + C1, A2 = 2 (s_xy - mu_x mu_y) + C2,
+//   B1 = mu_x^2 + mu_y^2 + C1, B2 = s_xx - mu_x^2 + s_yy - mu_y^2 + C2.
+// Its derivative w.r.t. the render pixel x_p is
+//   sum_q w(p - q) (dS/dmu_x(q) + 2 x_p dS/ds_xx(q) + y_p dS/ds_xy(q)),
+// i.e. three more separable blurs ("full" correlation, the window is
+// symmetric) of per-window coefficient maps.
+//
+// Layout: a work item is one strip of image rows and one block of kB bands.
+// Its input rows go, band block padded with zeros, into a ring of 11 rows;
+// each valid-window row is a vertical pass over the ring (five moments at
+// once) followed by a horizontal pass; its coefficients go to a second ring
+// from which each gradient row is gathered the same way. The rings take
+// about 2 MB at 640 columns, and the inner loops run over vectors of kB
+// bands. (Tiles of 128 columns, whose rings fit L2, measured no faster.)
+#include "model/ssim_kernel.h"
+
+#include <ATen/Parallel.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "model/ssim.h"
+
+namespace ddhgs::model::ssim_kernel {
+namespace {
+
+constexpr int kR = kSsimWindow;
+constexpr int kMoments = 5;  // x, y, x^2, y^2, x y
+constexpr int kCoeffs = 3;   // dS/dmu_x, dS/ds_xx, dS/ds_xy
+constexpr float kC1 = 0.01f * 0.01f, kC2 = 0.03f * 0.03f;
+// Moments are taken about the middle of the [0, 1] data range: the rounding
+// error of E[x^2] - E[x]^2 scales with (x - kShift)^2 instead of x^2, which
+// matters where the variances are near zero (flat backgrounds) and only
+// C2 = 9e-4 keeps SSIM finite.
+constexpr float kShift = 0.5f;
+// Work items wanted per image: enough for two threads to balance. Strips are
+// only cut when there are fewer band blocks than this, since each strip
+// recomputes the 10 window rows above it.
+constexpr int64_t kItems = 16;
+constexpr int64_t kMinStripRows = 24;
+
+struct Window {
+  float w[kR];
+  Window() {
+    double d[kR], sum = 0;
+    for (int k = 0; k < kR; ++k) {
+      const double x = double(k - kR / 2);
+      d[k] = std::exp(-(x * x) / (2 * kSsimSigma * kSsimSigma));
+      sum += d[k];
+    }
+    for (int k = 0; k < kR; ++k) w[k] = float(d[k] / sum);
+  }
+};
+
+// A vector of kB floats (GCC/Clang vector extension): one AVX-512 register
+// for kB = 16, two AVX2 ones; arithmetic on it is element-wise.
+template <int kB>
+struct VecOf {
+  typedef float type __attribute__((vector_size(sizeof(float) * kB)));
+};
+
+template <typename V>
+inline V load(const float* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+
+template <typename V>
+inline void store(float* p, const V& v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
+// Ring and row buffers of one thread, in vectors of kB bands.
+template <typename V>
+struct Scratch {
+  std::vector<V> in;     // [kR][W][2] x, y (about kShift), ring by row % kR
+  std::vector<V> v;      // [W][kMoments] vertical moment sums of one window row
+  std::vector<V> coeff;  // [kR][Wv][kCoeffs] coefficient rows, ring by row % kR
+  std::vector<V> u;      // [Wv][kCoeffs] vertical coefficient sums of a gradient row
+
+  static Scratch& get() {
+    thread_local Scratch s;
+    return s;
+  }
+};
+
+template <typename V>
+V lane_mask(int bw) {
+  V m = {};
+  for (int c = 0; c < bw; ++c) m[c] = 1.0f;
+  return m;
+}
+
+template <int kB>
+struct Item {
+  using V = typename VecOf<kB>::type;
+  const Images& im;
+  const Window& win;
+  float* grad;
+  int64_t c0;  // first band of the block
+  int bw;      // bands in the block (<= kB)
+  int64_t wv, hv;
+  float inv_m;  // 1 / (N Hv Wv)
+  Scratch<V>& s;
+  V lanes;  // 1 in the block's bands, 0 in the padding lanes
+
+  V* in_row(int64_t r) const { return s.in.data() + (r % kR) * im.width * 2; }
+  V* coeff_row(int64_t i) const { return s.coeff.data() + (i % kR) * wv * kCoeffs; }
+
+  // Copies row r's band block into the ring, about kShift (padding lanes
+  // hold 0); returns sum |x - y| over it, from the unshifted values.
+  double load_row(int64_t r) const {
+    const int64_t stride = im.bands;
+    const float* a = im.render + r * im.width * stride + c0;
+    const float* b = im.target + r * im.width * stride + c0;
+    V* dst = in_row(r);
+    V l1 = {};
+    for (int64_t j = 0; j < im.width; ++j) {
+      V x = {}, y = {};
+      if (bw == kB) {
+        x = load<V>(a + j * stride), y = load<V>(b + j * stride);
+      } else {
+        for (int c = 0; c < bw; ++c) x[c] = a[j * stride + c], y[c] = b[j * stride + c];
+      }
+      const V d = x - y;
+      l1 += d < 0 ? -d : d;
+      dst[2 * j] = (x - kShift) * lanes;
+      dst[2 * j + 1] = (y - kShift) * lanes;
+    }
+    double sum = 0;
+    for (int c = 0; c < kB; ++c) sum += l1[c];
+    return sum;
+  }
+
+  // Moments of window row i: vertical sums into v, then horizontal sums and
+  // SSIM per window; coefficients into the ring when grad is wanted.
+  // Returns the sum of SSIM over the row's windows and the block's bands.
+  double window_row(int64_t i) const {
+    const V* rows[kR];
+    for (int k = 0; k < kR; ++k) rows[k] = in_row(i + k);
+    V* v = s.v.data();
+    for (int64_t j = 0; j < im.width; ++j) {
+      V m0 = {}, m1 = {}, m2 = {}, m3 = {}, m4 = {};
+      for (int k = 0; k < kR; ++k) {
+        const V x = rows[k][2 * j], y = rows[k][2 * j + 1];
+        const V wx = win.w[k] * x, wy = win.w[k] * y;
+        m0 += wx, m1 += wy, m2 += wx * x, m3 += wy * y, m4 += wx * y;
+      }
+      V* vj = v + j * kMoments;
+      vj[0] = m0, vj[1] = m1, vj[2] = m2, vj[3] = m3, vj[4] = m4;
+    }
+    V* co = grad ? coeff_row(i) : nullptr;
+    V row_sum = {};
+    for (int64_t j = 0; j < wv; ++j) {
+      V mu[kMoments] = {};
+      for (int k = 0; k < kR; ++k) {
+        const float wk = win.w[k];
+        const V* vj = v + (j + k) * kMoments;
+        for (int q = 0; q < kMoments; ++q) mu[q] += wk * vj[q];
+      }
+      // Shifted means (s) and the true ones (m): variances and covariance
+      // are shift invariant, the luminance term is not.
+      const V sx = mu[0], sy = mu[1];
+      const V mx = sx + kShift, my = sy + kShift;
+      const V a1 = 2 * mx * my + kC1, a2 = 2 * (mu[4] - sx * sy) + kC2;
+      const V b1 = mx * mx + my * my + kC1;
+      const V b2 = (mu[2] - sx * sx) + (mu[3] - sy * sy) + kC2;
+      const V inv_d = 1.0f / (b1 * b2);
+      const V value = a1 * a2 * inv_d;
+      row_sum += value;
+      if (co) {
+        // dS/dmu_x with dA1 = 2 mu_y, dA2 = -2 s_y, dB1 = 2 mu_x, dB2 = -2 s_x;
+        // 1 / B1 = B2 / D and 1 / B2 = B1 / D.
+        V* out = co + j * kCoeffs;
+        out[0] = 2 * (my * a2 - sy * a1 - value * (mx * b2 - sx * b1)) * inv_d;
+        out[1] = -value * b1 * inv_d;
+        out[2] = 2 * a1 * inv_d;
+      }
+    }
+    double sum = 0;
+    for (int c = 0; c < bw; ++c) sum += row_sum[c];
+    return sum;
+  }
+
+  // Gradient row r from the coefficient rows r-10..r (those that exist); x
+  // and y are the ring's values about kShift, the variables of s_xx and s_xy.
+  void gradient_row(int64_t r) const {
+    const int64_t ilo = std::max<int64_t>(0, r - (kR - 1)), ihi = std::min(hv - 1, r);
+    const V* rows[kR];
+    float weights[kR];
+    int taps = 0;
+    for (int64_t i = ilo; i <= ihi; ++i, ++taps)
+      rows[taps] = coeff_row(i), weights[taps] = win.w[r - i];
+    V* u = s.u.data();
+    for (int64_t j = 0; j < wv * kCoeffs; ++j) {
+      V sum = {};
+      for (int k = 0; k < taps; ++k) sum += weights[k] * rows[k][j];
+      u[j] = sum;
+    }
+    const V* xy = in_row(r);
+    float* out = grad + r * im.width * im.bands + c0;
+    for (int64_t col = 0; col < im.width; ++col) {
+      const int64_t jlo = std::max<int64_t>(0, col - (kR - 1)), jhi = std::min(wv - 1, col);
+      V a0 = {}, a1 = {}, a2 = {};
+      for (int64_t j = jlo; j <= jhi; ++j) {
+        const float wk = win.w[col - j];
+        const V* uj = u + j * kCoeffs;
+        a0 += wk * uj[0], a1 += wk * uj[1], a2 += wk * uj[2];
+      }
+      const V* m = xy + col * 2;
+      const V g = (a0 + 2 * m[0] * a1 + m[1] * a2) * inv_m;
+      float* dst = out + col * im.bands;
+      if (bw == kB) {
+        store(dst, g);
+      } else {
+        for (int c = 0; c < bw; ++c) dst[c] = g[c];
+      }
+    }
+  }
+
+  // Rows [r0, r1) of the block: their L1, the SSIM of the windows starting
+  // in them and, when wanted, their gradient.
+  Sums run(int64_t r0, int64_t r1) const {
+    Sums sums;
+    const int64_t first = std::max<int64_t>(0, r0 - (kR - 1));  // first window row needed
+    const int64_t last = std::min(r1, hv);                      // window rows [first, last)
+    int64_t loaded = first;
+    auto load_through = [&](int64_t row) {
+      for (; loaded <= row; ++loaded) {
+        const double l1 = load_row(loaded);
+        if (loaded >= r0 && loaded < r1) sums.l1 += l1;
+      }
+    };
+    for (int64_t i = first; i < last; ++i) {
+      load_through(i + kR - 1);
+      const double row_ssim = window_row(i);
+      if (i < r0) continue;  // halo row: owned by the strip above
+      sums.ssim += row_ssim;
+      if (grad) gradient_row(i);
+    }
+    load_through(r1 - 1);
+    if (grad)
+      for (int64_t r = std::max(r0, last); r < r1; ++r) gradient_row(r);
+    return sums;
+  }
+};
+
+template <int kB>
+Sums run_blocks(const Images& im, float* grad) {
+  using V = typename VecOf<kB>::type;
+  static const Window window;
+  const int64_t blocks = (im.bands + kB - 1) / kB;
+  const int64_t wanted = std::max<int64_t>(1, (kItems + blocks - 1) / blocks);
+  const int64_t strips = std::max<int64_t>(1, std::min(wanted, im.height / kMinStripRows));
+  const int64_t strip_rows = (im.height + strips - 1) / strips;
+  const int64_t items = strips * blocks;
+  const int64_t wv = im.width - (kR - 1), hv = im.height - (kR - 1);
+  const float inv_m = float(1.0 / (double(im.bands) * double(hv) * double(wv)));
+  std::vector<Sums> partial(static_cast<size_t>(items));
+  at::parallel_for(0, items, 1, [&](int64_t begin, int64_t end) {
+    Scratch<V>& s = Scratch<V>::get();
+    s.in.resize(size_t(kR * im.width * 2));
+    s.v.resize(size_t(im.width * kMoments));
+    if (grad) {
+      s.coeff.resize(size_t(kR * wv * kCoeffs));
+      s.u.resize(size_t(wv * kCoeffs));
+    }
+    for (int64_t item = begin; item < end; ++item) {
+      const int64_t strip = item / blocks, block = item % blocks;
+      const int64_t c0 = block * kB;
+      const int bw = int(std::min<int64_t>(kB, im.bands - c0));
+      const int64_t r0 = strip * strip_rows, r1 = std::min(im.height, r0 + strip_rows);
+      const Item<kB> work{im, window, grad, c0, bw, wv, hv, inv_m, s, lane_mask<V>(bw)};
+      if (r0 < r1) partial[size_t(item)] = work.run(r0, r1);
+    }
+  });
+  Sums total;
+  for (const Sums& p : partial) total.l1 += p.l1, total.ssim += p.ssim;
+  return total;
+}
+
+}  // namespace
+
+Sums run(const Images& im, float* grad) {
+  // Narrow blocks for few bands, so RGB does not compute 13 empty lanes.
+  if (im.bands <= 4) return run_blocks<4>(im, grad);
+  if (im.bands <= 8) return run_blocks<8>(im, grad);
+  return run_blocks<16>(im, grad);
+}
+
+}  // namespace ddhgs::model::ssim_kernel
