@@ -16,7 +16,10 @@
 
 namespace ddhgs::train {
 
-constexpr int kConfigFormatVersion = 1;
+// 2: schedule keys are fractions of `iterations` (train/schedule.h); files
+// of version 1 are read and converted.
+constexpr int kConfigFormatVersion = 2;
+constexpr int kOldestConfigFormatVersion = 1;
 
 // Folder holding default.json: $DDHGS_CONFIG_DIR, else the nearest configs/
 // above the running executable, else /usr/share/ddhgs/configs.
@@ -26,6 +29,10 @@ std::filesystem::path config_dir();
 // with its "extends" chain resolved and every key validated. The result has
 // every key of default.json and no "extends".
 nlohmann::json load_preset(const std::string& name_or_path);
+
+// Converts a complete config of an older format_version read from `source`
+// (a run's config.json) to today's keys, keeping what the run did.
+void upgrade_run_config(nlohmann::json& config, const std::string& source);
 
 // Adds the keys of default.json that `config` lacks, with their default
 // values: keys introduced after an older run was made. Every new component

@@ -74,7 +74,8 @@ void Trainer::request_stop() {
   g_stop = true;
 }
 
-Trainer::Trainer(json config, RunPaths run) : config_(std::move(config)), run_(std::move(run)) {}
+Trainer::Trainer(json config, RunPaths run)
+    : config_(std::move(config)), run_(std::move(run)), schedule_(schedule_from_config(config_)) {}
 
 void Trainer::load_scene() {
   fs::path data = config_.at("data").at("path").get<std::string>();
@@ -150,7 +151,7 @@ void Trainer::set_learning_rates(int64_t iteration) {
   state_.adam.group("means").lr =
       extent_ * model::exponential_lr(iteration, o.at("means_lr_init").get<double>(),
                                       o.at("means_lr_final").get<double>(),
-                                      o.at("means_lr_max_steps").get<int64_t>());
+                                      schedule_.means_lr_decay_steps);
   state_.adam.group("log_scales").lr = o.at("scaling_lr").get<double>();
   state_.adam.group("quats").lr = o.at("rotation_lr").get<double>();
   state_.adam.group("logit_opacities").lr = o.at("opacity_lr").get<double>();
@@ -230,8 +231,7 @@ int Trainer::view_for(int64_t iteration) const {
 void Trainer::step(int64_t iteration, json& record) {
   set_learning_rates(iteration);
   auto& g = state_.gaussians;
-  const int64_t degree_every = config_.at("model").at("sh_degree_every").get<int64_t>();
-  if (every(iteration, degree_every) && g.active_sh_degree < g.max_sh_degree())
+  if (every(iteration, schedule_.sh_degree_every) && g.active_sh_degree < g.max_sh_degree())
     ++g.active_sh_degree;
 
   const int view = view_for(iteration);
@@ -244,21 +244,20 @@ void Trainer::step(int64_t iteration, json& record) {
                 mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration))});
   loss.total.backward();
 
-  const json& d = config_.at("densify");
-  const int64_t until = d.at("until_iter").get<int64_t>();
-  if (iteration < until && sink.grad().defined())
+  if (schedule_.densifies(iteration) && sink.grad().defined())
     state_.stats.accumulate(out.radii, sink.grad(), camera.intrinsics.width,
                             camera.intrinsics.height);
   state_.adam.step();
   state_.adam.zero_grad();
 
-  if (iteration < until) {
-    const int64_t reset_every = d.at("opacity_reset_every").get<int64_t>();
-    if (iteration > d.at("from_iter").get<int64_t>() && every(iteration, d.at("every"))) {
+  if (schedule_.densifies(iteration)) {
+    const int64_t reset_every = schedule_.opacity_reset_every;
+    if (iteration > schedule_.densify_from && every(iteration, schedule_.densify_every)) {
       auto generator = at::make_generator<at::CPUGeneratorImpl>(
           mix_seed(config_.at("seed").get<uint64_t>(), uint64_t(2 * iteration)));
       const int64_t before = g.size();
-      auto r = model::densify_and_prune(g, state_.adam, state_.stats, densify_options(d), extent_,
+      auto r = model::densify_and_prune(g, state_.adam, state_.stats,
+                                        densify_options(config_.at("densify")), extent_,
                                         reset_every > 0 && iteration > reset_every, generator);
       state_.meta["densify_added"] =
           state_.meta["densify_added"].get<int64_t>() + r.cloned + r.split;

@@ -20,6 +20,7 @@
 #include "train/diffusion_term.h"
 #include "train/losses.h"
 #include "train/run_folder.h"
+#include "train/schedule.h"
 
 namespace ddhgs::train {
 
@@ -79,6 +80,7 @@ class Trainer {
 
   nlohmann::json config_;
   RunPaths run_;
+  Schedule schedule_;  // from config_ (resume with new iterations rebuilds the trainer)
   std::unique_ptr<io::Scene> scene_;
   TrainState state_;
   std::vector<LossTerm> losses_;
