@@ -181,7 +181,8 @@ const json& legacy_values() {
   static const json values = {{"diffusion.prediction", "eps"},
                               {"diffusion.min_snr_gamma", 0.0},
                               {"diffusion.finetune_steps", 0},
-                              {"diffusion.sampler_samples", 1}};
+                              {"diffusion.sampler_samples", 1},
+                              {"model.background_from_views", false}};
   return values;
 }
 

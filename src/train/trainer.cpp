@@ -11,6 +11,7 @@
 #include "io/atomic_file.h"
 #include "io/ply.h"
 #include "model/densify.h"
+#include "train/background.h"
 #include "train/config.h"
 #include "train/init.h"
 
@@ -57,6 +58,22 @@ model::DensifyOptions densify_options(const json& d) {
   return o;
 }
 
+// " (0.99, 0.98, 1.00)", or the range for many bands.
+std::string describe_values(const torch::Tensor& values) {  // [N]
+  char text[96];
+  if (values.numel() <= 4) {
+    std::string out = " (";
+    for (int64_t i = 0; i < values.numel(); ++i) {
+      std::snprintf(text, sizeof text, "%s%.3f", i ? ", " : "", values[i].item<double>());
+      out += text;
+    }
+    return out + ")";
+  }
+  std::snprintf(text, sizeof text, " (%.3f to %.3f over %lld bands)", values.min().item<double>(),
+                values.max().item<double>(), (long long)values.numel());
+  return text;
+}
+
 bool every(int64_t iteration, int64_t interval) {
   return interval > 0 && iteration % interval == 0;
 }
@@ -83,6 +100,11 @@ void Trainer::load_scene() {
   for (const auto& w : scene_->warnings) core::log_warn(w);
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   background_ = background(config_, scene_->bands());
+  if (config_.at("model").at("background_from_views").get<bool>()) {
+    background_ = border_colour(*scene_, scene_->train);
+    core::log_info("background starts from the training views' border colour" +
+                   describe_values(background_));
+  }
   extent_ = scene_extent(*scene_, scene_->train);
   const json& loss = config_.at("loss");
   losses_ = baseline_losses(loss.at("l1").get<double>(), loss.at("dssim").get<double>());
@@ -407,7 +429,7 @@ void Trainer::write_outputs(double seconds) {
   }
   summary.update(test_psnr());
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
-  if (background_module_) {
+  if (background_module_ || config_.at("model").at("background_from_views").get<bool>()) {
     // eval, render and report take it from here (config.json stays as the
     // run was configured, so the run can be reproduced from it).
     auto values = background_.detach().contiguous();

@@ -1,5 +1,6 @@
 // Initial state on small RGB scenes written here: random points for wide and
-// narrow fields of view, and the fallback to random points.
+// narrow fields of view, the border colour that starts the background, and
+// the fallback to random points.
 #include <ATen/CPUGeneratorImpl.h>
 #include <gtest/gtest.h>
 
@@ -9,6 +10,7 @@
 #include "io/image.h"
 #include "io/transforms.h"
 #include "support/test_support.h"
+#include "train/background.h"
 #include "train/init.h"
 
 namespace ddhgs::train {
@@ -24,7 +26,8 @@ core::Mat4 w2c_of(int i) {
 }
 
 // Every view: a white backdrop with a dark object in the middle; in view 1 the
-// object reaches the top edge, and view 2's border is tinted.
+// object reaches the top edge, and view 2's border is tinted, so the median
+// has minorities to ignore.
 torch::Tensor picture(int view) {
   auto image = torch::full({kHeight, kWidth, 3}, 255, torch::kUInt8);
   image.slice(0, 3, 9).slice(1, 5, 11).fill_(20);
@@ -88,6 +91,18 @@ TEST(Init, RandomPointsStayAroundTheObjectForANarrowField) {
   // No points in the dataset and random not asked for: random points anyway.
   const model::Gaussians g = initialise_gaussians(*scene, options);
   EXPECT_EQ(g.size(), 300);
+}
+
+TEST(Init, BorderColourIsTheMedianOfTheBorderPixels) {
+  auto scene = io::load_scene(write_scene("init_border", 14.0));
+  const torch::Tensor colour = border_colour(*scene, scene->train);
+  ASSERT_EQ(colour.sizes(), (std::vector<int64_t>{3}));
+  // The object on view 1's top edge and view 2's tint are minorities.
+  EXPECT_TRUE(torch::allclose(colour, torch::ones({3}), 0, 1e-6)) << colour;
+  // Only view 2 (tinted red channel): its own border colour.
+  const torch::Tensor tinted = border_colour(*scene, {2});
+  EXPECT_NEAR(tinted[0].item<double>(), 200.0 / 255, 1e-6);
+  EXPECT_NEAR(tinted[1].item<double>(), 1.0, 1e-6);
 }
 
 }  // namespace
