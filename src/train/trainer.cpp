@@ -137,6 +137,12 @@ void Trainer::build_modules() {
     add_module("background", background_module_,
                config_.at("optim").at("background_lr").get<double>());
   }
+  const json& cameras = config_.at("camera_refinement");
+  if (cameras.at("enabled").get<bool>()) {
+    camera_refinement_ = CameraRefinement(int64_t(scene_->views.size()), scene_->train);
+    add_module("camera_refinement", camera_refinement_.ptr(),
+               cameras.at("rotation_lr").get<double>());
+  }
   const auto diffusion = diffusion_term_options(config_, scene_->bands(), "config");
   if (diffusion.enabled()) {
     diffusion_ = std::make_unique<DiffusionTerm>(
@@ -179,6 +185,17 @@ void Trainer::set_learning_rates(int64_t iteration) {
   state_.adam.group("logit_opacities").lr = o.at("opacity_lr").get<double>();
   state_.adam.group("sh_dc").lr = dc;
   state_.adam.group("sh_rest").lr = dc / o.at("sh_rest_lr_divisor").get<double>();
+  if (camera_refinement_)
+    state_.adam.group("camera_refinement/translation").lr =
+        config_.at("camera_refinement").at("translation_lr").get<double>();
+}
+
+render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor& sink) {
+  const core::Camera& camera = scene_->views[view].camera;
+  model::Gaussians g = state_.gaussians;  // handles to the same tensors
+  if (camera_refinement_)
+    std::tie(g.means, g.quats) = camera_refinement_->move(view, camera, g.means, g.quats, extent_);
+  return model::render_gaussians(g, camera, background_, band_offsets(), sink);
 }
 
 std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run, bool force) {
@@ -260,7 +277,7 @@ void Trainer::step(int64_t iteration, json& record) {
   const core::Camera& camera = scene_->views[view].camera;
   torch::Tensor target = scene_->image(view);
   auto sink = torch::zeros({g.size(), 2}).requires_grad_(true);
-  auto out = model::render_gaussians(g, camera, background_, band_offsets(), sink);
+  auto out = render_training_view(view, sink);
   LossValues loss = evaluate_losses(
       losses_, {out.image, target, view, iteration,
                 mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration))});
@@ -271,6 +288,7 @@ void Trainer::step(int64_t iteration, json& record) {
                             camera.intrinsics.height);
   state_.adam.step();
   state_.adam.zero_grad();
+  if (camera_refinement_) camera_refinement_->recentre();
 
   if (schedule_.densifies(iteration)) {
     const int64_t reset_every = schedule_.opacity_reset_every;
@@ -308,9 +326,7 @@ void Trainer::finetune_step(int64_t iteration, json& record) {
   const DiffusionTermOptions& options = diffusion_->options();
   auto render = [&](int v) {
     torch::NoGradGuard no_grad;
-    return model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_,
-                                   band_offsets())
-        .image;
+    return render_training_view(v, {}).image;
   };
   if (!finetune_cache_checked_) {
     finetune_cache_checked_ = true;

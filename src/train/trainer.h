@@ -16,6 +16,7 @@
 #include "io/dataset.h"
 #include "model/gaussians.h"
 #include "model/wavelength_encoder.h"
+#include "train/camera_refinement.h"
 #include "train/checkpoint.h"
 #include "train/diffusion_term.h"
 #include "train/losses.h"
@@ -67,6 +68,9 @@ class Trainer {
   void create_optimizer();
   void set_learning_rates(int64_t iteration);
   int view_for(int64_t iteration) const;
+  // A training view rendered with its camera correction, if any; sink as in
+  // render::rasterize.
+  render::RenderOutput render_training_view(int view, const torch::Tensor& sink);
   void step(int64_t iteration, nlohmann::json& record);
   // Gaussian iterations plus the denoiser's fine-tuning steps, if any.
   int64_t total_steps() const;
@@ -87,8 +91,9 @@ class Trainer {
   torch::Tensor background_;  // [N]
   double extent_ = 1;
   model::WavelengthEncoder encoder_{nullptr};
-  std::unique_ptr<DiffusionTerm> diffusion_;  // loss.diffusion > 0
-  torch::Tensor wavelengths01_;               // [N] the encoder's input
+  CameraRefinement camera_refinement_{nullptr};  // camera_refinement.enabled
+  std::unique_ptr<DiffusionTerm> diffusion_;     // loss.diffusion > 0
+  torch::Tensor wavelengths01_;                  // [N] the encoder's input
   // The frozen Gaussians' renders of the training views for the fine-tuning,
   // made on its first step when they fit diffusion.finetune_cache_mb; otherwise each
   // step renders the views it draws.
