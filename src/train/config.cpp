@@ -178,11 +178,10 @@ namespace {
 // unweighted loss before the residual parameterisation became the default,
 // had no fine-tuning phase, and its output was one sample, not a mean.)
 const json& legacy_values() {
-  static const json values = {{"diffusion.prediction", "eps"},
-                              {"diffusion.min_snr_gamma", 0.0},
-                              {"diffusion.finetune_steps", 0},
-                              {"diffusion.sampler_samples", 1},
-                              {"model.background_from_views", false}};
+  static const json values = {
+      {"diffusion.prediction", "eps"},        {"diffusion.min_snr_gamma", 0.0},
+      {"diffusion.finetune_steps", 0},        {"diffusion.sampler_samples", 1},
+      {"model.background_from_views", false}, {"model.learn_background", false}};
   return values;
 }
 

@@ -39,7 +39,8 @@ void upgrade_run_config(nlohmann::json& config, const std::string& source);
 // defaults to off, and keys whose default changes what existing components do
 // get the value that reproduces the older run (diffusion.prediction "eps",
 // diffusion.min_snr_gamma 0, diffusion.finetune_steps 0,
-// diffusion.sampler_samples 1, model.background_from_views false), so the
+// diffusion.sampler_samples 1, model.background_from_views false,
+// model.learn_background false), so the
 // older run keeps its behaviour. Returns
 // the dotted names of the keys added.
 std::vector<std::string> add_missing_keys(nlohmann::json& config);
