@@ -50,8 +50,9 @@ void check_model_matches_scene(const fs::path& ply_path, const io::GaussianPly& 
 
 torch::Tensor read_learned_background(const fs::path& path, int64_t bands) {
   core::require(fs::exists(path), path,
-                "missing: the run learned its background (model.learn_background) but did not "
-                "finish writing it");
+                "missing: the run learned its background or took it from the views "
+                "(model.learn_background, model.background_from_views) but did not finish "
+                "writing it");
   auto j = nlohmann::json::parse(io::read_file(path), nullptr, false);
   core::require(j.is_object() && j.contains("background") && j["background"].is_array() &&
                     int64_t(j["background"].size()) == bands,
@@ -102,7 +103,8 @@ RunModel open_run_model(const fs::path& run_dir) {
                 "missing: the run has no final model (did training finish?)");
   run.ply = io::read_gaussian_ply(paths.gaussians());
   run.background = train::background(run.config, run.ply.bands());
-  if (run.config.at("model").at("learn_background").get<bool>())
+  const auto& model = run.config.at("model");
+  if (model.at("learn_background").get<bool>() || model.at("background_from_views").get<bool>())
     run.background = read_learned_background(paths.learned_background(), run.ply.bands());
   return run;
 }

@@ -16,7 +16,10 @@
 
 namespace ddhgs::train {
 
-constexpr int kConfigFormatVersion = 1;
+// 2: schedule keys are fractions of `iterations` (train/schedule.h); files
+// of version 1 are read and converted.
+constexpr int kConfigFormatVersion = 2;
+constexpr int kOldestConfigFormatVersion = 1;
 
 // Folder holding default.json: $DDHGS_CONFIG_DIR, else the nearest configs/
 // above the running executable, else /usr/share/ddhgs/configs.
@@ -27,12 +30,18 @@ std::filesystem::path config_dir();
 // every key of default.json and no "extends".
 nlohmann::json load_preset(const std::string& name_or_path);
 
+// Converts a complete config of an older format_version read from `source`
+// (a run's config.json) to today's keys, keeping what the run did.
+void upgrade_run_config(nlohmann::json& config, const std::string& source);
+
 // Adds the keys of default.json that `config` lacks, with their default
 // values: keys introduced after an older run was made. Every new component
 // defaults to off, and keys whose default changes what existing components do
 // get the value that reproduces the older run (diffusion.prediction "eps",
 // diffusion.min_snr_gamma 0, diffusion.finetune_steps 0,
-// diffusion.sampler_samples 1), so the older run keeps its behaviour. Returns
+// diffusion.sampler_samples 1, model.background_from_views false,
+// model.learn_background false), so the
+// older run keeps its behaviour. Returns
 // the dotted names of the keys added.
 std::vector<std::string> add_missing_keys(nlohmann::json& config);
 

@@ -56,6 +56,23 @@ core::Vec3 look_at_point(const io::Scene& scene, const std::vector<int>& views) 
   return x;
 }
 
+// Tangent of the half-angle from the optical axis to an image corner.
+double corner_tan(const core::Intrinsics& k) {
+  return std::hypot(0.5 * k.width / k.fx, 0.5 * k.height / k.fy);
+}
+
+// The radius of what the views see at the distance of the point they look
+// at (scene units), averaged over the views.
+double field_radius(const io::Scene& scene, const std::vector<int>& views,
+                    const core::Vec3& target) {
+  double sum = 0;
+  for (int v : views) {
+    const core::Camera& cam = scene.views[v].camera;
+    sum += (target - cam.center()).norm() * corner_tan(cam.intrinsics);
+  }
+  return sum / double(views.size());
+}
+
 }  // namespace
 
 double scene_extent(const io::Scene& scene, const std::vector<int>& views) {
@@ -72,6 +89,7 @@ torch::Tensor sample_view_volume(const io::Scene& scene, const std::vector<int>&
                                  int64_t count, at::Generator& generator) {
   core::require(!views.empty(), scene.root, "no training views");
   const core::Vec3 target = look_at_point(scene, views);
+  const double radius = field_radius(scene, views, target);
   auto u = torch::rand({count, 4}, generator, torch::kFloat64);
   auto ua = u.accessor<double, 2>();
   auto out = torch::empty({count, 3}, torch::kFloat32);
@@ -84,8 +102,10 @@ torch::Tensor sample_view_volume(const io::Scene& scene, const std::vector<int>&
     const core::Vec3 dir_cam{(px - k.cx) / k.fx, (py - k.cy) / k.fy, 1.0};
     const core::Vec3 c = cam.center();
     const double distance = std::max((target - c).norm(), 1e-3);
-    // z-depth along the camera axis, so points fill the frustum slab.
-    const double depth = distance * (0.5 + ua[i][3]);
+    // z-depth along the camera axis, so points fill the frustum slab: as deep
+    // as the field is wide, at most half the distance either side.
+    const double half_depth = std::min(0.5 * distance, radius);
+    const double depth = distance + half_depth * (2 * ua[i][3] - 1);
     const core::Vec3 p = cam.camera_to_world().transform_point(dir_cam * depth);
     oa[i][0] = float(p.x);
     oa[i][1] = float(p.y);
@@ -134,14 +154,11 @@ model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions&
   torch::Tensor xyz, values;
   const bool has_points = scene.points.xyz.defined() && scene.points.xyz.size(0) > 0;
   if (options.random || !has_points) {
-    if (!options.random)
-      throw core::Error(scene.root,
-                        "the dataset has no points to initialise from; pass "
-                        "--random-init to start from random points instead");
     xyz = sample_view_volume(scene, scene.train, options.random_points, generator);
     values = torch::full({xyz.size(0), n}, 0.5f);
     core::log_warn("initialising " + std::to_string(xyz.size(0)) +
-                   " Gaussians at random inside the cameras' view volume");
+                   " Gaussians at random inside the cameras' view volume" +
+                   (options.random ? "" : " (the dataset has no points)"));
   } else {
     xyz = scene.points.xyz.to(torch::kFloat32).contiguous();
     const auto& spectra = scene.points.spectra;

@@ -22,16 +22,20 @@ struct InitOptions {
   uint64_t seed = 0;
 };
 
-// Throws core::Error when the scene has no points and random is false.
+// Random points when random is set or the scene has none.
 model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions& options);
 
 // 3DGS's scene extent: 1.1 x the largest distance of a camera centre from
 // their mean (scene units). Scales position learning rates and densification.
+// (For a narrow field of view it is many times the object's size; it is kept
+// because in pixels at the object it is what 3DGS uses: scaling it down to
+// the object's size cost 2.9 dB on Basil, docs/benchmarks.md.)
 double scene_extent(const io::Scene& scene, const std::vector<int>& views);
 
-// Uniform points along random pixel rays of the given views, at depths
-// between 0.5 and 1.5 times the camera's distance to the point the cameras
-// look at (least-squares closest point to their optical axes): [count, 3].
+// Uniform points along random pixel rays of the given views, at depths within
+// the camera's distance d to the point the cameras look at (least-squares
+// closest point to their optical axes) plus or minus min(d / 2, r), r the
+// radius the views see at that distance: [count, 3].
 torch::Tensor sample_view_volume(const io::Scene& scene, const std::vector<int>& views,
                                  int64_t count, at::Generator& generator);
 

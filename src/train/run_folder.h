@@ -26,7 +26,8 @@ struct RunPaths {
   std::filesystem::path checkpoint_at(int64_t iteration) const;
   std::filesystem::path metrics() const { return root / "metrics.jsonl"; }
   std::filesystem::path summary() const { return root / "train_summary.json"; }
-  // The background spectrum a run learned (model.learn_background).
+  // The background spectrum a run learned or took from its views
+  // (model.learn_background, model.background_from_views).
   std::filesystem::path learned_background() const { return root / "background.json"; }
 };
 

@@ -14,6 +14,7 @@
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
 #include "model/densify.h"
+#include "train/background.h"
 #include "train/config.h"
 #include "train/init.h"
 
@@ -70,6 +71,22 @@ model::DensifyOptions densify_options(const json& d) {
   return o;
 }
 
+// " (0.99, 0.98, 1.00)", or the range for many bands.
+std::string describe_values(const torch::Tensor& values) {  // [N]
+  char text[96];
+  if (values.numel() <= 4) {
+    std::string out = " (";
+    for (int64_t i = 0; i < values.numel(); ++i) {
+      std::snprintf(text, sizeof text, "%s%.3f", i ? ", " : "", values[i].item<double>());
+      out += text;
+    }
+    return out + ")";
+  }
+  std::snprintf(text, sizeof text, " (%.3f to %.3f over %lld bands)", values.min().item<double>(),
+                values.max().item<double>(), (long long)values.numel());
+  return text;
+}
+
 bool every(int64_t iteration, int64_t interval) {
   return interval > 0 && iteration % interval == 0;
 }
@@ -91,7 +108,8 @@ int Trainer::stop_signal() {
   return g_stop_signal;
 }
 
-Trainer::Trainer(json config, RunPaths run) : config_(std::move(config)), run_(std::move(run)) {}
+Trainer::Trainer(json config, RunPaths run)
+    : config_(std::move(config)), run_(std::move(run)), schedule_(schedule_from_config(config_)) {}
 
 void Trainer::load_scene() {
   fs::path data = config_.at("data").at("path").get<std::string>();
@@ -99,6 +117,11 @@ void Trainer::load_scene() {
   for (const auto& w : scene_->warnings) core::log_warn(w);
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   background_ = background(config_, scene_->bands());
+  if (config_.at("model").at("background_from_views").get<bool>()) {
+    background_ = border_colour(*scene_, scene_->train);
+    core::log_info("background starts from the training views' border colour" +
+                   describe_values(background_));
+  }
   extent_ = scene_extent(*scene_, scene_->train);
   const json& loss = config_.at("loss");
   losses_ = baseline_losses(loss.at("l1").get<double>(), loss.at("dssim").get<double>());
@@ -130,6 +153,12 @@ void Trainer::build_modules() {
     background_ = background_module_->register_parameter("value", background_.clone());
     add_module("background", background_module_,
                config_.at("optim").at("background_lr").get<double>());
+  }
+  const json& cameras = config_.at("camera_refinement");
+  if (cameras.at("enabled").get<bool>()) {
+    camera_refinement_ = CameraRefinement(int64_t(scene_->views.size()), scene_->train);
+    add_module("camera_refinement", camera_refinement_.ptr(),
+               cameras.at("rotation_lr").get<double>());
   }
   const auto diffusion = diffusion_term_options(config_, scene_->bands(), "config");
   if (diffusion.enabled()) {
@@ -167,12 +196,24 @@ void Trainer::set_learning_rates(int64_t iteration) {
   state_.adam.group("means").lr =
       extent_ * model::exponential_lr(iteration, o.at("means_lr_init").get<double>(),
                                       o.at("means_lr_final").get<double>(),
-                                      o.at("means_lr_max_steps").get<int64_t>());
+                                      schedule_.means_lr_decay_steps);
   state_.adam.group("log_scales").lr = o.at("scaling_lr").get<double>();
   state_.adam.group("quats").lr = o.at("rotation_lr").get<double>();
   state_.adam.group("logit_opacities").lr = o.at("opacity_lr").get<double>();
   state_.adam.group("sh_dc").lr = dc;
   state_.adam.group("sh_rest").lr = dc / o.at("sh_rest_lr_divisor").get<double>();
+  if (camera_refinement_)
+    state_.adam.group("camera_refinement/translation").lr =
+        config_.at("camera_refinement").at("translation_lr").get<double>();
+}
+
+render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor& sink,
+                                                   const render::ShRestSink& rest_step) {
+  const core::Camera& camera = scene_->views[view].camera;
+  model::Gaussians g = state_.gaussians;  // handles to the same tensors
+  if (camera_refinement_)
+    std::tie(g.means, g.quats) = camera_refinement_->move(view, camera, g.means, g.quats, extent_);
+  return model::render_gaussians(g, camera, background_, band_offsets(), sink, rest_step);
 }
 
 std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run, bool replace) {
@@ -255,8 +296,7 @@ void Trainer::step(int64_t iteration, json& record) {
   core::StageScope step_scope("step (other)");
   set_learning_rates(iteration);
   auto& g = state_.gaussians;
-  const int64_t degree_every = config_.at("model").at("sh_degree_every").get<int64_t>();
-  if (every(iteration, degree_every) && g.active_sh_degree < g.max_sh_degree())
+  if (every(iteration, schedule_.sh_degree_every) && g.active_sh_degree < g.max_sh_degree())
     ++g.active_sh_degree;
 
   const int view = view_for(iteration);
@@ -274,7 +314,7 @@ void Trainer::step(int64_t iteration, json& record) {
     // backward: their [G, N, 15] gradient is never stored.
     render::ShRestSink rest_step;
     if (g.sh_rest.numel() > 0) rest_step = state_.adam.row_step("sh_rest");
-    out = model::render_gaussians(g, camera, background_, band_offsets(), sink, rest_step);
+    out = render_training_view(view, sink, rest_step);
   }
   LossValues loss;
   {
@@ -288,9 +328,7 @@ void Trainer::step(int64_t iteration, json& record) {
     loss.total.backward();
   }
 
-  const json& d = config_.at("densify");
-  const int64_t until = d.at("until_iter").get<int64_t>();
-  if (iteration < until && sink.grad().defined()) {
+  if (schedule_.densifies(iteration) && sink.grad().defined()) {
     core::StageScope stage("densify stats");
     state_.stats.accumulate(out.radii, sink.grad(), camera.intrinsics.width,
                             camera.intrinsics.height);
@@ -299,16 +337,18 @@ void Trainer::step(int64_t iteration, json& record) {
     core::StageScope stage("adam");
     state_.adam.step();
     state_.adam.zero_grad();
+    if (camera_refinement_) camera_refinement_->recentre();
   }
 
-  if (iteration < until) {
+  if (schedule_.densifies(iteration)) {
     core::StageScope stage("densify");
-    const int64_t reset_every = d.at("opacity_reset_every").get<int64_t>();
-    if (iteration > d.at("from_iter").get<int64_t>() && every(iteration, d.at("every"))) {
+    const int64_t reset_every = schedule_.opacity_reset_every;
+    if (iteration > schedule_.densify_from && every(iteration, schedule_.densify_every)) {
       auto generator = at::make_generator<at::CPUGeneratorImpl>(
           mix_seed(config_.at("seed").get<uint64_t>(), uint64_t(2 * iteration)));
       const int64_t before = g.size();
-      auto r = model::densify_and_prune(g, state_.adam, state_.stats, densify_options(d), extent_,
+      auto r = model::densify_and_prune(g, state_.adam, state_.stats,
+                                        densify_options(config_.at("densify")), extent_,
                                         reset_every > 0 && iteration > reset_every, generator);
       state_.meta["densify_added"] =
           state_.meta["densify_added"].get<int64_t>() + r.cloned + r.split;
@@ -346,9 +386,7 @@ void Trainer::finetune_step(int64_t iteration, json& record) {
   const DiffusionTermOptions& options = diffusion_->options();
   auto render = [&](int v) {
     torch::NoGradGuard no_grad;
-    return model::render_gaussians(state_.gaussians, scene_->views[v].camera, background_,
-                                   band_offsets())
-        .image;
+    return render_training_view(v, {}).image;
   };
   if (!finetune_cache_checked_) {
     finetune_cache_checked_ = true;
@@ -461,7 +499,7 @@ void Trainer::write_outputs(double seconds) {
   }
   summary.update(test_psnr());
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
-  if (background_module_) {
+  if (background_module_ || config_.at("model").at("background_from_views").get<bool>()) {
     // eval, render and report take it from here (config.json stays as the
     // run was configured, so the run can be reproduced from it).
     auto values = background_.detach().contiguous();

@@ -16,10 +16,12 @@
 #include "io/scene/scene.h"
 #include "model/gaussians.h"
 #include "model/wavelength_encoder.h"
+#include "train/camera_refinement.h"
 #include "train/checkpoint.h"
 #include "train/diffusion_term.h"
 #include "train/losses.h"
 #include "train/run_folder.h"
+#include "train/schedule.h"
 
 namespace ddhgs::train {
 
@@ -74,6 +76,10 @@ class Trainer {
   void create_optimizer();
   void set_learning_rates(int64_t iteration);
   int view_for(int64_t iteration) const;
+  // A training view rendered with its camera correction, if any; sink as in
+  // render::rasterize; rest_step receives the SH rest gradient in blocks.
+  render::RenderOutput render_training_view(int view, const torch::Tensor& sink,
+                                            const render::ShRestSink& rest_step = {});
   void step(int64_t iteration, nlohmann::json& record);
   // Gaussian iterations plus the denoiser's fine-tuning steps, if any.
   int64_t total_steps() const;
@@ -88,14 +94,16 @@ class Trainer {
 
   nlohmann::json config_;
   RunPaths run_;
+  Schedule schedule_;  // from config_ (resume with new iterations rebuilds the trainer)
   std::unique_ptr<io::Scene> scene_;
   TrainState state_;
   std::vector<LossTerm> losses_;
   torch::Tensor background_;  // [N]
   double extent_ = 1;
   model::WavelengthEncoder encoder_{nullptr};
-  std::unique_ptr<DiffusionTerm> diffusion_;  // loss.diffusion > 0
-  torch::Tensor wavelengths01_;               // [N] the encoder's input
+  CameraRefinement camera_refinement_{nullptr};  // camera_refinement.enabled
+  std::unique_ptr<DiffusionTerm> diffusion_;     // loss.diffusion > 0
+  torch::Tensor wavelengths01_;                  // [N] the encoder's input
   // The frozen Gaussians' renders of the training views for the fine-tuning,
   // made on its first step when they fit diffusion.finetune_cache_mb; otherwise each
   // step renders the views it draws.

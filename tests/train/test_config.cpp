@@ -147,6 +147,15 @@ TEST(Config, OlderRunConfigsTakeDefaultsForKeysAddedLater) {
   EXPECT_GT(train::load_preset("default")["diffusion"]["finetune_steps"], 0);
   EXPECT_EQ(read["diffusion"]["finetune_steps"], 0);
   EXPECT_EQ(read["diffusion"]["sampler_samples"], 1);
+  // A run from before the learned background kept its fixed one, though the
+  // default preset now learns it, started from the views' border.
+  c["model"].erase("learn_background");
+  c["model"].erase("background_from_views");
+  std::ofstream(dir / "config.json") << c.dump(2);
+  read = train::read_run_config({dir});
+  EXPECT_EQ(train::load_preset("default")["model"]["learn_background"], true);
+  EXPECT_EQ(read["model"]["learn_background"], false);
+  EXPECT_EQ(read["model"]["background_from_views"], false);
   // Keys that are there keep being checked.
   c["iterations"] = "many";
   std::ofstream(dir / "config.json") << c.dump(2);

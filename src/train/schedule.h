@@ -1,0 +1,39 @@
+// When things happen during training, in iteration numbers. Presets give the
+// schedule as fractions of `iterations` (model.sh_degree_every_fraction,
+// optim.means_lr_decay_fraction, densify.from_fraction, until_fraction,
+// opacity_reset_every_fraction), so one preset means the same run shape at
+// 2,000 and at 30,000 iterations; densify.every stays in iterations because
+// it is the window over which view-space gradients are averaged, which
+// depends on how many views it spans, not on the run's length.
+#pragma once
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+
+namespace ddhgs::train {
+
+struct Schedule {
+  int64_t iterations = 0;
+  int64_t sh_degree_every = 0;       // raise the active SH degree every this many iterations
+  int64_t means_lr_decay_steps = 0;  // position lr reaches means_lr_final here
+  int64_t densify_from = 0;          // densify after this iteration ...
+  int64_t densify_until = 0;         // ... and before this one
+  int64_t densify_every = 0;
+  int64_t opacity_reset_every = 0;  // 0: never
+
+  bool densifies(int64_t iteration) const { return iteration < densify_until; }
+};
+
+// The schedule of a resolved config: round(fraction x iterations), and at
+// least 1 for the intervals whose fraction is above zero.
+Schedule schedule_from_config(const nlohmann::json& config);
+
+// A config written before the schedule became fractions (format_version 1:
+// densify.from_iter, until_iter, opacity_reset_every, model.sh_degree_every,
+// optim.means_lr_max_steps in iterations) in today's keys, with the
+// fractions that give back the same iteration numbers in a run of
+// `iterations`. Other keys are left as they are; returns whether anything
+// was converted.
+bool upgrade_absolute_schedule(nlohmann::json& config, int64_t iterations);
+
+}  // namespace ddhgs::train

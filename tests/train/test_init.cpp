@@ -1,0 +1,109 @@
+// Initial state on small RGB scenes written here: random points for wide and
+// narrow fields of view, the border colour that starts the background, and
+// the fallback to random points.
+#include <ATen/CPUGeneratorImpl.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "io/scene/scene.h"
+#include "io/image/image.h"
+#include "io/transforms/transforms.h"
+#include "support/test_support.h"
+#include "train/background.h"
+#include "train/init.h"
+
+namespace ddhgs::train {
+namespace {
+namespace fs = std::filesystem;
+
+constexpr double kRadius = 3;  // cameras on a ring around the origin
+constexpr int kWidth = 16, kHeight = 12, kViews = 10;
+
+core::Mat4 w2c_of(int i) {
+  const double a = 2 * M_PI * i / kViews;
+  return core::look_at({kRadius * std::cos(a), kRadius * std::sin(a), 0.5}, {0, 0, 0}, {0, 0, 1});
+}
+
+// Every view: a white backdrop with a dark object in the middle; in view 1 the
+// object reaches the top edge, and view 2's border is tinted, so the median
+// has minorities to ignore.
+torch::Tensor picture(int view) {
+  auto image = torch::full({kHeight, kWidth, 3}, 255, torch::kUInt8);
+  image.slice(0, 3, 9).slice(1, 5, 11).fill_(20);
+  if (view == 1) image.slice(0, 0, 9).slice(1, 5, 11).fill_(20);
+  if (view == 2) image.select(2, 0).fill_(200);
+  return image;
+}
+
+fs::path write_scene(const std::string& name, double fx) {
+  const fs::path root = test::temp_dir(name);
+  fs::create_directories(root / "images");
+  io::TransformsFile file;
+  for (int i = 0; i < kViews; ++i) {
+    io::TransformsFrame f;
+    f.file_path = "images/r_" + std::to_string(i) + ".png";
+    f.intrinsics.fx = f.intrinsics.fy = fx;
+    f.intrinsics.cx = kWidth / 2.0;
+    f.intrinsics.cy = kHeight / 2.0;
+    f.intrinsics.width = kWidth;
+    f.intrinsics.height = kHeight;
+    f.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(w2c_of(i));
+    io::write_png(root / f.file_path, picture(i));
+    file.frames.push_back(f);
+  }
+  io::write_transforms(root / "transforms.json", file);
+  return root;
+}
+
+// Half the image diagonal over the focal length: tan of the corner angle.
+double corner_tan(double fx) {
+  return std::hypot(kWidth / 2.0, kHeight / 2.0) / fx;
+}
+
+TEST(Init, RandomPointsFillTheFrustumSlabForAWideField) {
+  // About 60 degrees across: depths from 0.5 to 1.5 times the distance.
+  auto scene = io::load_scene(write_scene("init_wide", 14.0));
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(3);
+  const torch::Tensor points = sample_view_volume(*scene, scene->train, 2000, generator);
+  const double distance = std::hypot(kRadius, 0.5);
+  const double farthest = points.norm(2, 1).max().item<double>();
+  EXPECT_GT(farthest, 0.9 * distance);
+  EXPECT_LT(farthest, distance * std::hypot(0.5, 1.5 * corner_tan(14.0)));
+}
+
+TEST(Init, RandomPointsStayAroundTheObjectForANarrowField) {
+  const double fx = 150;
+  auto scene = io::load_scene(write_scene("init_random", fx));
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(7);
+  const torch::Tensor points = sample_view_volume(*scene, scene->train, 2000, generator);
+  ASSERT_EQ(points.sizes(), (std::vector<int64_t>{2000, 3}));
+  // Within the field's radius of the origin (depth and lateral), with some
+  // slack for the corners of the frustum slab.
+  const double field = std::hypot(kRadius, 0.5) * corner_tan(fx);
+  const double farthest = points.norm(2, 1).max().item<double>();
+  EXPECT_LT(farthest, 1.6 * field);
+  EXPECT_GT(farthest, 0.5 * field);
+
+  InitOptions options;
+  options.random_points = 300;
+  options.sh_degree = 1;
+  // No points in the dataset and random not asked for: random points anyway.
+  const model::Gaussians g = initialise_gaussians(*scene, options);
+  EXPECT_EQ(g.size(), 300);
+}
+
+TEST(Init, BorderColourIsTheMedianOfTheBorderPixels) {
+  auto scene = io::load_scene(write_scene("init_border", 14.0));
+  const torch::Tensor colour = border_colour(*scene, scene->train);
+  ASSERT_EQ(colour.sizes(), (std::vector<int64_t>{3}));
+  // The object on view 1's top edge and view 2's tint are minorities.
+  EXPECT_TRUE(torch::allclose(colour, torch::ones({3}), 0, 1e-6)) << colour;
+  // Only view 2 (tinted red channel): its own border colour.
+  const torch::Tensor tinted = border_colour(*scene, {2});
+  EXPECT_NEAR(tinted[0].item<double>(), 200.0 / 255, 1e-6);
+  EXPECT_NEAR(tinted[1].item<double>(), 1.0, 1e-6);
+}
+
+}  // namespace
+}  // namespace ddhgs::train
