@@ -91,8 +91,12 @@ nlohmann::json train_config(const fs::path& scene, const Options& o, int64_t gau
   config["data"]["downscale"] = o.downscale;
   config["init"]["random"] = true;
   config["init"]["random_points"] = gaussians;
-  config["densify"]["from_iter"] = 1000000;  // a fixed Gaussian count
-  config["model"]["sh_degree_every"] = 1;    // degree 3 from the fourth iteration
+  // A fixed Gaussian count: statistics are gathered, nothing is added, no
+  // opacity reset.
+  config["densify"]["from_fraction"] = 1.0;
+  config["densify"]["opacity_reset_every_fraction"] = 0.0;
+  // Degree 3 from the fourth iteration (an interval rounds up to 1).
+  config["model"]["sh_degree_every_fraction"] = 1e-9;
   config["output"]["checkpoint_every"] = 0;
   return config;
 }

@@ -61,11 +61,11 @@ nlohmann::json config_for(const fs::path& scene) {
   config["iterations"] = 20;
   config["init"]["random"] = true;
   config["init"]["random_points"] = 3000;
-  config["model"]["sh_degree_every"] = 5;  // degrees 0 to 3 within the run
+  config["model"]["sh_degree_every_fraction"] = 0.25;  // degrees 0 to 3 within the run
   config["model"]["learn_background"] = true;
   // Densification statistics are gathered, but no Gaussian is added: tiny
   // gradient differences must not flip a clone or prune decision.
-  config["densify"]["from_iter"] = 1000000;
+  config["densify"]["from_fraction"] = 1.0;
   return config;
 }
 
