@@ -93,7 +93,7 @@ Trainer::Trainer(json config, RunPaths run) : config_(std::move(config)), run_(s
 void Trainer::load_scene() {
   fs::path data = config_.at("data").at("path").get<std::string>();
   scene_ = io::load_scene(data, load_options(config_));
-  for (const auto& w : scene_->warnings) core::log_warn(w);
+  io::log_scene_messages(*scene_);
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   background_ = background(config_, scene_->bands());
   extent_ = scene_extent(*scene_, scene_->train);
