@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "io/undistort/undistort.h"
 #include "synth/render.h"
@@ -48,7 +49,9 @@ Views render_views(const core::Intrinsics& distortion) {
 }
 
 // Bilinear resampling softens the plant's edges a little: the bar is a few
-// dB under the measured 33-35 dB, and far above the distorted view itself.
+// dB under the measured 40.8 dB (OPENCV) and 39.4 dB (fisheye). The plant
+// fills the centre, where the lens moves pixels least, so the distorted view
+// itself is already 36.1 and 34.1 dB: undistortion must gain 3 dB over it.
 TEST(DistortedViews, UndistortedViewMatchesThePinholeRender) {
   core::Intrinsics barrel;
   barrel.k1 = -0.25;
@@ -62,10 +65,14 @@ TEST(DistortedViews, UndistortedViewMatchesThePinholeRender) {
     Views v = render_views(lens);
     double matched = psnr_db(v.undistorted, v.pinhole);
     double unmatched = psnr_db(v.distorted, v.pinhole);
-    EXPECT_GT(matched, 30) << "fisheye " << lens.fisheye;
-    EXPECT_GT(matched, unmatched + 8) << "fisheye " << lens.fisheye;
+    double mean_abs = (v.undistorted - v.pinhole).abs().mean().item<double>();
+    // The figures the README states.
+    std::printf("%s: undistorted vs pinhole %.1f dB (mean |error| %.4f), distorted %.1f dB\n",
+                lens.fisheye ? "fisheye k1 0.02" : "OPENCV k1 -0.25", matched, mean_abs, unmatched);
+    EXPECT_GT(matched, 37) << "fisheye " << lens.fisheye;
+    EXPECT_GT(matched, unmatched + 3) << "fisheye " << lens.fisheye;
     // Mean absolute error per sample, for the tolerance stated in the README.
-    EXPECT_LT((v.undistorted - v.pinhole).abs().mean().item<double>(), 0.01);
+    EXPECT_LT(mean_abs, 0.005);
   }
 }
 
