@@ -60,7 +60,8 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r) {
   j["point_colors"] = r.point_colors;
   j["point_spectra"] = r.point_spectra;
   j["clean_views"] = r.clean_views;
-  j["distortion"] = r.distortion;
+  j["distorted_views"] = r.distorted_views;
+  j["notes"] = scene.notes;
   j["warnings"] = scene.warnings;
   j["errors"] = r.errors;
   return j;
@@ -96,8 +97,12 @@ void print_text(const io::Scene& scene, const io::SceneReport& r) {
   out << "clean       "
       << (r.clean_views ? std::to_string(r.clean_views) + " views with clean ground truth" : "none")
       << "\n"
-      << "cameras     " << (r.distortion ? "with lens distortion (k1 k2 p1 p2)" : "pinhole")
+      << "cameras     "
+      << (r.distorted_views ? std::to_string(r.distorted_views) +
+                                  " views with lens distortion, undistorted to pinhole at load"
+                            : std::string("pinhole"))
       << "\n";
+  for (const auto& note : scene.notes) out << "  note: " << note << "\n";
   if (scene.warnings.empty() && r.errors.empty()) {
     out << "problems    none\n";
     return;

@@ -29,7 +29,9 @@ Action setup(CLI::App& parent) {
                   "exhaustive (any capture) or sequential (views in capture order)")
       ->capture_default_str();
   cmd->add_option("--camera-model", args->colmap.camera_model,
-                  "SIMPLE_PINHOLE (square pixels) or PINHOLE (fx, fy); one camera for all views")
+                  "SIMPLE_PINHOLE (square pixels), PINHOLE (fx, fy), or a lens model COLMAP "
+                  "refines (SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE, ...; the views are "
+                  "undistorted when the scene loads); one camera for all views")
       ->capture_default_str();
   cmd->add_option("--pseudo-rgb", args->pseudo_rgb,
                   "cie[:D65|A|E], bands:R,G,B (nm) or matrix:FILE (3 rows of N weights)")

@@ -38,6 +38,7 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   set("--elevation-max", c.max_elevation_deg, f.max_elevation_deg);
   set("--fov-deg", c.fov_deg, f.fov_deg);
   set("--fill", c.fill, f.fill);
+  set("--k1", c.k1, f.k1);
   set("--supersample", c.supersample, f.supersample);
   set("--noise-scale", c.noise_scale, f.noise_scale);
   set("--points", c.points, f.points);
@@ -68,6 +69,9 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--elevation-max", f.max_elevation_deg, "Highest ring elevation, degrees");
   cmd->add_option("--fov-deg", f.fov_deg, "Horizontal field of view, degrees");
   cmd->add_option("--fill", f.fill, "Fraction of the frame (each axis) the plant fills");
+  cmd->add_option("--k1", f.k1,
+                  "Radial lens distortion of every camera (OPENCV k1, negative: barrel); the "
+                  "views are undistorted when the scene loads");
   cmd->add_option("--supersample", f.supersample, "Rays per pixel along each axis");
   cmd->add_option("--noise-scale", f.noise_scale, "Multiplies the noise standard deviation");
   cmd->add_option("--points", f.points, "Sparse points in points.ply (about)");

@@ -3,7 +3,6 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "core/log.h"
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
 #include "train/config.h"
@@ -117,7 +116,7 @@ TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_ove
   train::RunPaths paths{run_dir};
   fs::path data = dataset_path(run, data_override);
   run.scene = io::load_scene(data, train::load_options(run.config));
-  for (const std::string& warning : run.scene->warnings) core::log_warn(warning);
+  io::log_scene_messages(*run.scene);
   check_model_matches_scene(paths.gaussians(), model.ply, *run.scene);
   run.gaussians = model::from_ply(model.ply);
   run.background = model.background;

@@ -18,6 +18,12 @@ Intrinsics Intrinsics::downscaled(int factor) const {
   return out;
 }
 
+bool Intrinsics::operator==(const Intrinsics& o) const {
+  return fx == o.fx && fy == o.fy && cx == o.cx && cy == o.cy && width == o.width &&
+         height == o.height && fisheye == o.fisheye && k1 == o.k1 && k2 == o.k2 && k3 == o.k3 &&
+         k4 == o.k4 && p1 == o.p1 && p2 == o.p2;
+}
+
 Vec3 Camera::forward() const {
   Mat3 r = world_to_camera.rotation();
   return Vec3{r(2, 0), r(2, 1), r(2, 2)};  // third row of R = camera z in world

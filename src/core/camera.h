@@ -14,10 +14,21 @@ struct Intrinsics {
   double fx = 0, fy = 0;  // focal lengths, pixels
   double cx = 0, cy = 0;  // principal point, pixels (top-left corner is 0, 0)
   int width = 0, height = 0;
-  // OpenCV radial/tangential distortion; zero for a pinhole camera.
-  double k1 = 0, k2 = 0, p1 = 0, p2 = 0;
+  // Lens distortion of normalised image coordinates (x/z, y/z), applied
+  // between the pinhole projection and the focal lengths (core/distortion.h):
+  // radial k1..k4 (terms in r^2..r^8) and tangential p1 p2 (OpenCV's and
+  // nerfstudio's OPENCV; COLMAP SIMPLE_RADIAL, RADIAL, OPENCV and FULL_OPENCV
+  // without its rational terms); with fisheye set, the equidistant fisheye
+  // model's k1..k4 instead (OPENCV_FISHEYE, COLMAP SIMPLE_RADIAL_FISHEYE and
+  // RADIAL_FISHEYE). All zero and not fisheye: a pinhole camera.
+  bool fisheye = false;
+  double k1 = 0, k2 = 0, k3 = 0, k4 = 0, p1 = 0, p2 = 0;
 
-  bool has_distortion() const { return k1 != 0 || k2 != 0 || p1 != 0 || p2 != 0; }
+  bool has_distortion() const {
+    return fisheye || k1 != 0 || k2 != 0 || k3 != 0 || k4 != 0 || p1 != 0 || p2 != 0;
+  }
+  // Same focal lengths, principal point, size and lens.
+  bool operator==(const Intrinsics& o) const;
   // Intrinsics of the same camera at 1/factor resolution (area-averaged images).
   Intrinsics downscaled(int factor) const;
 };

@@ -29,6 +29,17 @@ std::string nm(double value) {
 std::vector<BandSelection> report_band_selections(const std::vector<double>& wavelengths_nm) {
   std::vector<BandSelection> out{BandSelection{}};
   if (wavelengths_nm.empty()) return out;
+  if (!std::is_sorted(wavelengths_nm.begin(), wavelengths_nm.end())) {
+    // An RGB run (610, 550, 465 nm): each channel on its own.
+    for (int64_t b = 0; b < int64_t(wavelengths_nm.size()); ++b) {
+      BandSelection s;
+      s.pseudo_rgb = false;
+      s.first = s.last = b;
+      s.label = nm(wavelengths_nm[size_t(b)]) + "nm";
+      out.push_back(s);
+    }
+    return out;
+  }
   const double first = wavelengths_nm.front(), last = wavelengths_nm.back();
   for (const auto& range : kPaperRangesNm) {
     double width = range[1] - range[0];

@@ -15,7 +15,8 @@ namespace ddhgs::eval {
 // ranges (400-418, 750-768, 1082-1100 nm) moved inside the scene's range
 // (kept at their width, clamped to the first and last band) so every scene
 // shows its blue, red-edge and near-infrared ends; a window between two bands
-// takes the nearest band. Duplicates are dropped.
+// takes the nearest band. Duplicates are dropped. Wavelengths not in
+// increasing order (an RGB run's R, G, B) give one selection per band.
 std::vector<BandSelection> report_band_selections(const std::vector<double>& wavelengths_nm);
 
 // What a selection shows, for menus: "pseudo-RGB", "750-768 nm (bands 3-4)".

@@ -144,14 +144,8 @@ int run_stage(const std::string& binary, const StageRun& run, const StageOptions
 void check_colmap_options(const ColmapOptions& options) {
   core::require(options.matcher == "exhaustive" || options.matcher == "sequential",
                 "--matcher '" + options.matcher + "': expected exhaustive or sequential");
-  const std::string& m = options.camera_model;
-  if (m != "PINHOLE" && m != "SIMPLE_PINHOLE") {
-    // Validates the name (core::Error for unknown models) before refusing it.
-    colmap_param_count(m, "--camera-model");
-    throw core::Error("--camera-model " + m +
-                      ": distorting camera models are not supported (the renderer needs "
-                      "undistorted pinhole cameras); use PINHOLE or SIMPLE_PINHOLE");
-  }
+  // Any model ddhgs reads: a distorting one is undistorted when the scene loads.
+  colmap_param_count(options.camera_model, "--camera-model");
   for (const auto& setting : options.settings) {
     auto eq = setting.find('=');
     auto dot = setting.find('.');

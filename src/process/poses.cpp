@@ -46,13 +46,11 @@ TransformsFile transforms_from_colmap(const ColmapModel& model, const CubeSet& c
   for (size_t c = 0; c < cubes.names.size(); ++c) {
     const ColmapImage* image = image_of_cube[c];
     if (!image) continue;
+    // A camera with lens distortion keeps it: the scene's views are
+    // undistorted when they load (io/undistort).
     core::Camera camera = colmap_camera(model, *image);
     const auto& k = camera.intrinsics;
     const std::string origin = "COLMAP camera " + std::to_string(image->camera_id);
-    core::require(!k.has_distortion(),
-                  origin +
-                      " has lens distortion; ddhgs renders undistorted pinhole cameras "
-                      "(undistort first, e.g. colmap image_undistorter)");
     core::require(k.width == cubes.width && k.height == cubes.height,
                   origin + " is " + std::to_string(k.width) + "x" + std::to_string(k.height) +
                       " pixels, but the cubes are " + std::to_string(cubes.width) + "x" +
@@ -71,13 +69,7 @@ ColmapModel colmap_from_transforms(const TransformsFile& file) {
   ColmapModel model;
   for (size_t i = 0; i < file.frames.size(); ++i) {
     const auto& f = file.frames[i];
-    const auto& k = f.intrinsics;
-    ColmapCamera camera;
-    camera.model = k.has_distortion() ? "OPENCV" : "PINHOLE";
-    camera.width = k.width;
-    camera.height = k.height;
-    camera.params = {k.fx, k.fy, k.cx, k.cy};
-    if (k.has_distortion()) camera.params.insert(camera.params.end(), {k.k1, k.k2, k.p1, k.p2});
+    ColmapCamera camera = colmap_camera_of(f.intrinsics);
     int id = 0;
     for (const auto& [existing_id, existing] : model.cameras)
       if (existing.model == camera.model && existing.width == camera.width &&

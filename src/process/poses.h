@@ -17,11 +17,12 @@ std::vector<int64_t> cube_of_images(const io::ColmapModel& model, const CubeSet&
 
 // transforms.json frames for the registered images of model (matched to
 // cubes by file stem), in cube order. cube_paths: as written in the file
-// (relative to the scene folder). core::Error for a distorting camera.
+// (relative to the scene folder). Lens distortion is kept (the scene's
+// views are undistorted as they load).
 io::TransformsFile transforms_from_colmap(const io::ColmapModel& model, const CubeSet& cubes,
                                           const std::vector<std::string>& cube_paths);
-// The inverse: one PINHOLE camera per distinct intrinsics, images named by
-// the frames' file_path, no points.
+// The inverse: one camera per distinct intrinsics (io::colmap_camera_of),
+// images named by the frames' file_path, no points.
 io::ColmapModel colmap_from_transforms(const io::TransformsFile& file);
 
 // Mean spectrum [P, N] of each point of model over the pixels where it was

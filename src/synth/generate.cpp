@@ -1,6 +1,7 @@
 #include "synth/generate.h"
 
 #include <chrono>
+#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "core/colour.h"
@@ -81,6 +82,7 @@ void validate(const SynthConfig& c) {
   core::require(c.bands == 1 || c.wl_max_nm > c.wl_min_nm, "synth: expected --wl-max > --wl-min");
   core::require(c.wl_min_nm > 0, "synth: expected --wl-min > 0 nm");
   core::require(c.fov_deg > 0 && c.fov_deg < 170, "synth: expected 0 < --fov-deg < 170");
+  core::require(std::abs(c.k1) < 1, "synth: expected -1 < --k1 < 1");
   core::require(c.noise_scale >= 0, "synth: expected --noise-scale >= 0");
   core::require(c.supersample >= 1 && c.supersample <= 8,
                 "synth: expected 1 <= --supersample <= 8");
@@ -113,6 +115,7 @@ nlohmann::json describe(const SynthConfig& c, const SpectralSetup& setup, const 
   j["elevation_deg"] = {c.min_elevation_deg, c.max_elevation_deg};
   j["fov_deg"] = c.fov_deg;
   j["fill"] = c.fill;
+  j["k1"] = c.k1;
   j["supersample"] = c.supersample;
   j["ground"] = c.ground;
   j["leaves"] = scene.leaves.size();
@@ -160,6 +163,7 @@ SynthResult write_synthetic_scene(const SynthConfig& config, const fs::path& out
     rig.width = config.width;
     rig.height = config.height;
     rig.fill = config.fill;
+    rig.k1 = config.k1;
     auto cameras = turntable_rig(scene, rig);
 
     io::TransformsFile transforms;

@@ -23,6 +23,9 @@ struct SynthConfig {
   double min_elevation_deg = 12, max_elevation_deg = 55;
   double fov_deg = 40;  // horizontal
   double fill = 0.95;   // fraction of the frame (each axis) the plant's box fills
+  // Radial lens distortion of every camera (OPENCV k1; negative: barrel),
+  // for scenes that exercise undistortion at load.
+  double k1 = 0;
   int supersample = 3;  // rays per pixel along each axis
   double noise_scale = 1.0;
   bool noisy_edges = false;  // noise grows as response^-2 instead of response^-1

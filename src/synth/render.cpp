@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/distortion.h"
 #include "core/error.h"
 
 namespace ddhgs::synth {
@@ -72,6 +73,7 @@ std::vector<core::Camera> turntable_rig(const PlantScene& scene, const RigOption
   intr.fx = intr.fy = core::focal_from_fov(options.fov_deg * deg, options.width);
   intr.cx = 0.5 * options.width;
   intr.cy = 0.5 * options.height;
+  intr.k1 = options.k1;
   // Same distance for every ring: the farthest at which the plant's box, seen
   // from any ring, fills the requested fraction of the frame.
   const Vec3 half = (scene.box_max - scene.box_min) * 0.5;
@@ -103,7 +105,8 @@ std::vector<core::Camera> turntable_rig(const PlantScene& scene, const RigOption
 Ray camera_ray(const core::Camera& camera, double x, double y) {
   const auto& k = camera.intrinsics;
   core::Mat4 c2w = camera.camera_to_world();
-  Vec3 d{(x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0};
+  const core::Point2 n = core::undistort(k, {(x - k.cx) / k.fx, (y - k.cy) / k.fy});
+  Vec3 d{n.x, n.y, 1.0};
   return {c2w.translation(), (c2w.rotation() * d).normalized()};
 }
 

@@ -44,13 +44,15 @@ struct RigOptions {
   double fov_deg = 40;  // horizontal
   int width = 128, height = 96;
   double fill = 0.95;  // fraction of the frame (each axis) the plant's box fills
+  double k1 = 0;       // radial lens distortion (OPENCV k1)
 };
 
 // Rings of cameras at several elevations looking at the plant's centre; more
 // views on the lower (longer) rings. Cameras use OpenCV axes, world z is up.
 std::vector<core::Camera> turntable_rig(const PlantScene& scene, const RigOptions& options);
 
-// World ray through pixel position (x, y) (pixel centres at +0.5).
+// World ray through pixel position (x, y) (pixel centres at +0.5), through
+// the camera's lens model: a distorted camera renders a distorted view.
 Ray camera_ray(const core::Camera& camera, double x, double y);
 
 // Clean signal float32 [H, W, N] in [0, 1], supersample x supersample rays per pixel.

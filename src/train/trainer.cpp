@@ -114,7 +114,7 @@ Trainer::Trainer(json config, RunPaths run)
 void Trainer::load_scene() {
   fs::path data = config_.at("data").at("path").get<std::string>();
   scene_ = io::load_scene(data, load_options(config_));
-  for (const auto& w : scene_->warnings) core::log_warn(w);
+  io::log_scene_messages(*scene_);
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   background_ = background(config_, scene_->bands());
   if (config_.at("model").at("background_from_views").get<bool>()) {

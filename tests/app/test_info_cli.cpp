@@ -8,6 +8,7 @@
 
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
+#include "io/image/image.h"
 #include "io/transforms/transforms.h"
 #include "support/test_support.h"
 
@@ -96,6 +97,47 @@ TEST(InfoCli, ListsEveryProblem) {
   EXPECT_TRUE(contains(out, "v4.npy: has 7 bands, expected 5")) << out;
   EXPECT_TRUE(contains(out, "v5.npy")) << out;
   EXPECT_TRUE(contains(out, "NaN")) << out;
+}
+
+size_t count(const std::string& text, const std::string& part) {
+  size_t n = 0;
+  for (size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + 1)) ++n;
+  return n;
+}
+
+// basil's transforms.json: scaled rotation blocks, RGB images beside cubes
+// that were never published, a lens model.
+TEST(InfoCli, WarningsOnceAndTheRgbFlagForMissingCubes) {
+  fs::path root = make_scene("info_basil_like");
+  io::TransformsFile file = io::read_transforms(root / "transforms.json");
+  fs::create_directories(root / "images");
+  for (size_t i = 0; i < file.frames.size(); ++i) {
+    auto& f = file.frames[i];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) f.camera_to_world_gl(r, c) *= 0.25;
+    f.file_path = "images/v" + std::to_string(i) + ".png";
+    io::write_png(root / f.file_path, torch::full({6, 8, 3}, 200, torch::kUInt8));
+    f.intrinsics.k1 = -0.05;
+  }
+  io::write_transforms(root / "transforms.json", file);
+  std::string out;
+  ASSERT_EQ(info(root.string() + " 2>&1", &out), 0) << out;
+  EXPECT_EQ(count(out, "non-orthonormal rotations"), 1u) << out;
+  EXPECT_TRUE(contains(out, "  warning: " + (root / "transforms.json").string() +
+                                ": 6 frame(s) have scaled or non-orthonormal rotations "
+                                "(re-orthonormalised)\n"))
+      << out;
+  EXPECT_TRUE(contains(out, "cameras     6 views with lens distortion, undistorted to pinhole"))
+      << out;
+  EXPECT_EQ(count(out, "note: undistorting 6 views"), 1u) << out;
+
+  fs::remove_all(root / "cubes");
+  EXPECT_EQ(info(root.string() + " 2>&1", &out), 1);
+  EXPECT_TRUE(contains(out, "none of the 6 hyperspectral cubes") && contains(out, "--rgb")) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  ASSERT_EQ(info(root.string() + " --rgb 2>&1", &out), 0) << out;
+  EXPECT_TRUE(contains(out, "bands       3")) << out;
+  EXPECT_EQ(count(out, "non-orthonormal rotations"), 1u) << out;
 }
 
 TEST(InfoCli, BadInputExitsWithOneLine) {

@@ -211,12 +211,11 @@ TEST(ProcessCli, BadInputsGiveOneLineAndNoOutput) {
   EXPECT_NE(out.find("empty: holds no cube files"), std::string::npos) << out;
 
   out = ddhgs("process " + (dir / "empty").string() + " --out " + (dir / "scene").string() +
-                  " --camera-model OPENCV",
+                  " --camera-model FOV",
               &rc);
-  EXPECT_EQ(rc, 1);
-  EXPECT_NE(out.find("--camera-model OPENCV: distorting camera models are not supported"),
-            std::string::npos)
-      << out;
+  EXPECT_EQ(rc, 1);  // lens models are undistorted at load; FOV is not read at all
+  EXPECT_NE(out.find("unsupported camera model"), std::string::npos) << out;
+  EXPECT_NE(out.find("--camera-model"), std::string::npos) << out;
 
   out = ddhgs("process " + (dir / "empty").string() + " --out " + (dir / "scene").string() +
                   " --skip-colmap",

@@ -184,8 +184,52 @@ TEST(Colmap, IntrinsicsOfEachModel) {
   EXPECT_EQ(colmap_intrinsics(c).k2, 0.01);
   c = {2, "PINHOLE", 8, 6, {10, 4, 3}};
   EXPECT_TRUE(contains(error_of([&] { colmap_intrinsics(c); }), "needs 4 parameters, found 3"));
-  c = {2, "FULL_OPENCV", 8, 6, std::vector<double>(12, 0.0)};
+  c = {2, "FULL_OPENCV", 8, 6, {10, 11, 4, 3, 0.1, 0.2, 0.3, 0.4, 0.5, 0, 0, 0}};
+  EXPECT_EQ(colmap_intrinsics(c).k3, 0.5);
+  c.params[9] = 0.01;  // k4: a rational term
+  EXPECT_TRUE(contains(error_of([&] { colmap_intrinsics(c); }), "rational terms"));
+  c = {2, "RADIAL_FISHEYE", 8, 6, {10, 4, 3, 0.02, -0.001}};
+  k = colmap_intrinsics(c);
+  EXPECT_TRUE(k.fisheye);
+  EXPECT_EQ(k.fy, 10);
+  EXPECT_EQ(k.k2, -0.001);
+  c = {2, "FOV", 8, 6, {10, 11, 4, 3, 0.9}};
   EXPECT_TRUE(contains(error_of([&] { colmap_intrinsics(c); }), "unsupported camera model"));
+}
+
+// Every lens model ddhgs reads survives both file formats with its
+// parameters, and intrinsics -> colmap_camera_of -> intrinsics is exact.
+TEST(Colmap, LensModelsRoundTripBothFormats) {
+  ColmapModel m;
+  m.cameras[1] = {1, "SIMPLE_RADIAL", 64, 48, {50.5, 32.1, 23.9, -0.071}};
+  m.cameras[2] = {2, "RADIAL", 64, 48, {50.5, 32.1, 23.9, -0.071, 0.0123}};
+  m.cameras[3] = {3, "OPENCV", 64, 48, {50.5, 51, 32.1, 23.9, -0.07, 0.01, 1e-3, -2e-3}};
+  m.cameras[4] = {
+      4, "FULL_OPENCV", 64, 48, {50.5, 51, 32.1, 23.9, -0.07, 0.01, 1e-3, -2e-3, 0.004, 0, 0, 0}};
+  m.cameras[5] = {5, "OPENCV_FISHEYE", 64, 48, {50.5, 51, 32.1, 23.9, 0.03, -0.004, 1e-3, -1e-4}};
+  m.cameras[6] = {6, "SIMPLE_RADIAL_FISHEYE", 64, 48, {50.5, 32.1, 23.9, 0.03}};
+  m.cameras[7] = {7, "RADIAL_FISHEYE", 64, 48, {50.5, 32.1, 23.9, 0.03, -0.004}};
+  fs::path dir = test::temp_dir("colmap_lenses");
+  write_colmap_binary(dir / "bin", m);
+  write_colmap_text(dir / "txt", m);
+  for (const char* format : {"bin", "txt"}) {
+    ColmapModel back = read_colmap(dir / format);
+    ASSERT_EQ(back.cameras.size(), m.cameras.size()) << format;
+    for (const auto& [id, camera] : m.cameras) {
+      EXPECT_EQ(back.cameras.at(id).model, camera.model) << format;
+      EXPECT_EQ(back.cameras.at(id).params, camera.params) << format << " " << camera.model;
+    }
+  }
+  for (const auto& [id, camera] : m.cameras) {
+    core::Intrinsics k = colmap_intrinsics(camera);
+    EXPECT_TRUE(k.has_distortion()) << camera.model;
+    ColmapCamera again = colmap_camera_of(k);
+    again.camera_id = id;
+    EXPECT_TRUE(colmap_intrinsics(again) == k) << camera.model << " -> " << again.model;
+  }
+  core::Intrinsics k = colmap_intrinsics(m.cameras[3]);
+  k.k4 = 0.001;  // nerfstudio's r^8 term: no COLMAP model has it
+  EXPECT_TRUE(contains(error_of([&] { colmap_camera_of(k); }), "no COLMAP model holds it"));
 }
 
 TEST(Colmap, TruncatedBinaryFiles) {
@@ -214,10 +258,11 @@ TEST(Colmap, TruncatedBinaryFiles) {
 
 TEST(Colmap, UnsupportedCameraModels) {
   fs::path dir = test::temp_dir("colmap_models");
-  write_file_atomically(dir / "cameras.txt", "# comment\n1 OPENCV_FISHEYE 10 10 1 2 3 4 5 6 7 8\n");
+  write_file_atomically(dir / "cameras.txt",
+                        "# comment\n1 THIN_PRISM_FISHEYE 10 10 1 2 3 4 5 6 7 8 9 10 11 12\n");
   write_file_atomically(dir / "images.txt", "");
   std::string what = error_of([&] { read_colmap(dir); });
-  EXPECT_TRUE(contains(what, "cameras.txt") && contains(what, "OPENCV_FISHEYE")) << what;
+  EXPECT_TRUE(contains(what, "cameras.txt") && contains(what, "THIN_PRISM_FISHEYE")) << what;
   EXPECT_TRUE(contains(what, "unsupported camera model")) << what;
 
   write_file_atomically(dir / "cameras.txt", "1 MADE_UP 10 10 1 2 3\n");

@@ -3,6 +3,7 @@
 
 #include "cube_test_util.h"
 #include "io/cube/cube.h"
+#include "io/scene/scene.h"
 
 namespace ddhgs::io {
 namespace {
@@ -192,6 +193,71 @@ TEST(Envi, IgnoreValueBecomesZeroInFloat) {
   EXPECT_EQ(f[0][0][0].item<float>(), 0.0f);
   EXPECT_FLOAT_EQ(f[0][1][0].item<float>(), 16383.0f / 32767.0f);
   EXPECT_FLOAT_EQ(cube_to_float(cube, 16383)[0][1][0].item<float>(), 1.0f);
+}
+
+// A uint16 reflectance product scaled by 10,000, as processing chains write it.
+void write_scaled_cube(const fs::path& hdr, const std::string& factor_line) {
+  test::write_bytes(hdr,
+                    "ENVI\nsamples = 2\nlines = 1\nbands = 1\ndata type = 12\n"
+                    "interleave = bsq\n" +
+                        factor_line);
+  std::string data;
+  put(&data, 6500, 2, false);
+  put(&data, 10000, 2, false);
+  test::write_bytes(fs::path(hdr).replace_extension(".img"), data);
+}
+
+TEST(Envi, ReflectanceScaleFactorDividesTheSamples) {
+  fs::path dir = test::temp_dir("envi_scale");
+  write_scaled_cube(dir / "r.hdr", "reflectance scale factor = 10000\n");
+  Cube cube = read_cube(dir / "r.hdr");
+  ASSERT_TRUE(cube.scale_factor.has_value());
+  EXPECT_EQ(*cube.scale_factor, 10000);
+  EXPECT_EQ(probe_cube(dir / "r.hdr").scale_factor, std::optional<double>(10000));
+  torch::Tensor f = cube_to_float(cube);
+  EXPECT_FLOAT_EQ(f[0][0][0].item<float>(), 0.65f);  // not 6500 / 65535 = 0.099
+  EXPECT_FLOAT_EQ(f[0][1][0].item<float>(), 1.0f);
+  EXPECT_FLOAT_EQ(cube_to_float(cube, 20000)[0][0][0].item<float>(), 0.325f);  // given scale wins
+
+  write_scaled_cube(dir / "plain.hdr", "");
+  EXPECT_FALSE(read_cube(dir / "plain.hdr").scale_factor.has_value());
+  EXPECT_FLOAT_EQ(cube_to_float(read_cube(dir / "plain.hdr"))[0][0][0].item<float>(),
+                  6500.0f / 65535.0f);
+
+  for (const char* bad : {"reflectance scale factor = 0\n", "reflectance scale factor = abc\n"}) {
+    write_scaled_cube(dir / "bad.hdr", bad);
+    expect_error_naming([&] { read_cube(dir / "bad.hdr"); }, (dir / "bad.hdr").string(),
+                        "reflectance scale factor");
+  }
+}
+
+// The scene's divisor: --scale, then the dataset's scale, then the header's
+// reflectance scale factor, then the sample type's maximum.
+TEST(Envi, SceneScaleOrder) {
+  fs::path dir = test::temp_dir("envi_scene_scale");
+  fs::create_directories(dir / "cubes");
+  for (int i = 0; i < 3; ++i)
+    write_scaled_cube(dir / "cubes" / ("v" + std::to_string(i) + ".hdr"),
+                      "reflectance scale factor = 10000\n");
+  auto transforms = [&](const std::string& extra) {
+    std::string frames;
+    for (int i = 0; i < 3; ++i)
+      frames += std::string(i ? "," : "") + R"({"hyperspectral_file_path": "cubes/v)" +
+                std::to_string(i) + R"(.hdr", "transform_matrix": [[1,0,0,)" + std::to_string(i) +
+                "],[0,1,0,0],[0,0,1,3],[0,0,0,1]]}";
+    test::write_bytes(dir / "transforms.json",
+                      R"({"fl_x": 2, "w": 2, "h": 1, "wavelengths": [550], )" + extra +
+                          R"("frames": [)" + frames + "]}");
+  };
+  transforms("");
+  auto scene = load_scene(dir);
+  EXPECT_EQ(scene->scale, 10000);
+  EXPECT_FLOAT_EQ(scene->image(1)[0][0][0].item<float>(), 0.65f);
+  transforms(R"("scale": 5000, )");
+  EXPECT_EQ(load_scene(dir)->scale, 5000);
+  LoadOptions options;
+  options.scale = 2;
+  EXPECT_EQ(load_scene(dir, options)->scale, 2);
 }
 
 TEST(Envi, MalformedInputNamesTheFile) {

@@ -38,17 +38,10 @@ void expect_near(const core::Mat4& a, const core::Mat4& b, double tol) {
   for (int i = 0; i < 16; ++i) EXPECT_NEAR(a.m[size_t(i)], b.m[size_t(i)], tol) << "entry " << i;
 }
 
+// Exact: the writer prints doubles with 17 significant digits.
 void expect_same_intrinsics(const core::Intrinsics& a, const core::Intrinsics& b) {
-  EXPECT_DOUBLE_EQ(a.fx, b.fx);
-  EXPECT_DOUBLE_EQ(a.fy, b.fy);
-  EXPECT_DOUBLE_EQ(a.cx, b.cx);
-  EXPECT_DOUBLE_EQ(a.cy, b.cy);
-  EXPECT_EQ(a.width, b.width);
-  EXPECT_EQ(a.height, b.height);
-  EXPECT_DOUBLE_EQ(a.k1, b.k1);
-  EXPECT_DOUBLE_EQ(a.k2, b.k2);
-  EXPECT_DOUBLE_EQ(a.p1, b.p1);
-  EXPECT_DOUBLE_EQ(a.p2, b.p2);
+  EXPECT_TRUE(a == b) << "fx " << a.fx << " / " << b.fx << ", k1 " << a.k1 << " / " << b.k1
+                      << ", fisheye " << a.fisheye << " / " << b.fisheye;
 }
 
 void write_text(const fs::path& path, const std::string& text) {
@@ -120,6 +113,40 @@ TEST(Transforms, RoundTripPerFrameIntrinsics) {
   expect_same_intrinsics(back.frames[1].intrinsics, file.frames[1].intrinsics);
   EXPECT_TRUE(back.frames[1].hyperspectral_file_path.empty());
   EXPECT_FALSE(back.scale.has_value());
+}
+
+TEST(Transforms, LensModelsAndAppliedTransformRoundTrip) {
+  fs::path dir = test::temp_dir("transforms_lenses");
+  TransformsFile file;
+  core::Intrinsics opencv = intrinsics(300, 64, 48);
+  opencv.k1 = -0.21;
+  opencv.k2 = 0.043;
+  opencv.k3 = -0.0071;
+  opencv.k4 = 0.0009;
+  opencv.p1 = 1.0 / 3000;
+  opencv.p2 = -0.0017;
+  core::Intrinsics fisheye = intrinsics(200, 64, 48);
+  fisheye.fisheye = true;
+  fisheye.k1 = 0.031;
+  fisheye.k2 = -0.0042;
+  fisheye.k3 = 0.0011;
+  fisheye.k4 = -0.00013;
+  core::Intrinsics pinhole = intrinsics(250, 64, 48);
+  file.frames = {frame(0, opencv), frame(1, fisheye), frame(2, pinhole)};
+  core::Mat4 applied;  // nerfstudio's axis swap: (x, y, z) -> (x, z, -y)
+  applied.m = {1, 0, 0, 0.5, 0, 0, 1, -1, 0, -1, 0, 2, 0, 0, 0, 1};
+  file.applied_transform = applied;
+  write_transforms(dir / "transforms.json", file);
+  TransformsFile back = read_transforms(dir / "transforms.json");
+  ASSERT_EQ(back.frames.size(), 3u);
+  for (size_t i = 0; i < 3; ++i)
+    expect_same_intrinsics(back.frames[i].intrinsics, file.frames[i].intrinsics);
+  ASSERT_TRUE(back.applied_transform.has_value());
+  expect_near(*back.applied_transform, applied, 0);
+
+  std::string text = read_file(dir / "transforms.json");
+  for (const char* model : {"\"OPENCV\"", "\"OPENCV_FISHEYE\"", "\"PINHOLE\""})
+    EXPECT_NE(text.find(model), std::string::npos) << model;
 }
 
 TEST(Transforms, DefaultsAndPerFrameOverrides) {
@@ -220,9 +247,23 @@ TEST(Transforms, MalformedFilesNameFileAndKey) {
   write_text(
       p,
       "{" + intr +
-          R"("camera_model": "OPENCV_FISHEYE", "frames": [{"file_path": "a.png", "transform_matrix": )" +
+          R"("camera_model": "EQUIRECTANGULAR", "frames": [{"file_path": "a.png", "transform_matrix": )" +
           kMatrix + "}]}");
-  expect_error(p, {"unsupported camera model", "OPENCV_FISHEYE"});
+  expect_error(p, {"unsupported camera model", "EQUIRECTANGULAR"});
+
+  // Coefficients the named model cannot have.
+  write_text(
+      p,
+      "{" + intr +
+          R"("camera_model": "PINHOLE", "k1": 0.1, "frames": [{"file_path": "a.png", "transform_matrix": )" +
+          kMatrix + "}]}");
+  expect_error(p, {"frames[0]", "PINHOLE has no lens distortion"});
+  write_text(
+      p,
+      "{" + intr +
+          R"("camera_model": "OPENCV_FISHEYE", "p1": 0.01, "frames": [{"file_path": "a.png", "transform_matrix": )" +
+          kMatrix + "}]}");
+  expect_error(p, {"frames[0]", "no tangential terms"});
 
   write_text(
       p,

@@ -245,13 +245,23 @@ TEST(SfmConvert, ColmapToTransformsAndBackRoundTrips) {
                   1e-9);
 }
 
-TEST(SfmConvert, DistortedOrMissizedCamerasAreRefused) {
+TEST(SfmConvert, DistortedCamerasKeepTheirLensMissizedOnesAreRefused) {
   ColmapModel model = posed_model();
   CubeSet cubes = named_cubes({"v0", "v1"});
   std::vector<std::string> paths = {"v0.npy", "v1.npy"};
+  // The scene's views are undistorted when they load: the lens is kept.
   model.cameras[2] = {2, "SIMPLE_RADIAL", 8, 6, {9.5, 4.1, 2.9, 0.01}};
-  EXPECT_TRUE(contains(error_of([&] { transforms_from_colmap(model, cubes, paths); }),
-                       "COLMAP camera 2 has lens distortion"));
+  TransformsFile file = transforms_from_colmap(model, cubes, paths);
+  ASSERT_EQ(file.frames.size(), 2u);
+  const core::Intrinsics& k = file.frames[1].intrinsics;
+  EXPECT_EQ(k.k1, 0.01);
+  EXPECT_EQ(k.fx, 9.5);
+  EXPECT_EQ(k.fy, 9.5);
+  ColmapModel back = colmap_from_transforms(file);
+  ASSERT_EQ(back.cameras.size(), 1u);  // every image uses camera 2
+  EXPECT_EQ(back.cameras.at(back.images[1].camera_id).model, "OPENCV");
+  EXPECT_TRUE(colmap_intrinsics(back.cameras.at(back.images[1].camera_id)) == k);
+
   model.cameras[2] = {2, "PINHOLE", 16, 12, {9.5, 9.25, 4.1, 2.9}};
   EXPECT_TRUE(contains(error_of([&] { transforms_from_colmap(model, cubes, paths); }),
                        "is 16x12 pixels, but the cubes are 8x6"));
@@ -302,12 +312,15 @@ TEST(SfmConvert, PointSpectraAreMeansOverTheObservingPixels) {
   }
 }
 
-TEST(SfmColmapOptions, DistortingModelsAndBadSettingsAreRefused) {
+TEST(SfmColmapOptions, UnknownModelsAndBadSettingsAreRefused) {
   ColmapOptions o;
   EXPECT_NO_THROW(check_colmap_options(o));
-  o.camera_model = "SIMPLE_RADIAL";
-  EXPECT_TRUE(contains(error_of([&] { check_colmap_options(o); }),
-                       "--camera-model SIMPLE_RADIAL: distorting camera models are not supported"));
+  for (const char* lens : {"SIMPLE_RADIAL", "OPENCV", "OPENCV_FISHEYE"}) {
+    o.camera_model = lens;  // undistorted when the scene loads
+    EXPECT_NO_THROW(check_colmap_options(o)) << lens;
+  }
+  o.camera_model = "FOV";
+  EXPECT_TRUE(contains(error_of([&] { check_colmap_options(o); }), "unsupported camera model"));
   o.camera_model = "FISHEYE_WHATEVER";
   EXPECT_TRUE(contains(error_of([&] { check_colmap_options(o); }), "--camera-model"));
   o.camera_model = "SIMPLE_PINHOLE";

@@ -17,23 +17,26 @@ struct ModelSpec {
   bool supported;
 };
 
-// COLMAP's model table (src/colmap/sensor/models.h). Fisheye and thin-prism
-// models cannot be expressed by core::Intrinsics' OpenCV k1 k2 p1 p2.
+// COLMAP's model table (src/colmap/sensor/models.h). FOV and thin-prism
+// models cannot be expressed by core::Intrinsics; FULL_OPENCV only without
+// its rational terms (k4 k5 k6 = 0, checked by colmap_intrinsics).
 constexpr ModelSpec kModels[] = {
     {0, "SIMPLE_PINHOLE", 3, true},
     {1, "PINHOLE", 4, true},
     {2, "SIMPLE_RADIAL", 4, true},
     {3, "RADIAL", 5, true},
     {4, "OPENCV", 8, true},
-    {5, "OPENCV_FISHEYE", 8, false},
-    {6, "FULL_OPENCV", 12, false},
+    {5, "OPENCV_FISHEYE", 8, true},
+    {6, "FULL_OPENCV", 12, true},
     {7, "FOV", 5, false},
-    {8, "SIMPLE_RADIAL_FISHEYE", 4, false},
-    {9, "RADIAL_FISHEYE", 5, false},
+    {8, "SIMPLE_RADIAL_FISHEYE", 4, true},
+    {9, "RADIAL_FISHEYE", 5, true},
     {10, "THIN_PRISM_FISHEYE", 12, false},
 };
 
-const char* kSupportedList = "SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV";
+const char* kSupportedList =
+    "SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV, OPENCV_FISHEYE, "
+    "SIMPLE_RADIAL_FISHEYE or RADIAL_FISHEYE";
 
 const ModelSpec& supported_spec(const ModelSpec* spec, const std::string& shown,
                                 const std::string& origin) {
@@ -102,32 +105,64 @@ core::Intrinsics colmap_intrinsics(const ColmapCamera& camera) {
   if (camera.params.size() != expected)
     throw core::Error(origin + ": model " + camera.model + " needs " + std::to_string(expected) +
                       " parameters, found " + std::to_string(camera.params.size()));
+  const std::string& m = camera.model;
   const auto& p = camera.params;
   core::Intrinsics k;
   k.width = int(camera.width);
   k.height = int(camera.height);
-  if (camera.model == "SIMPLE_PINHOLE" || camera.model == "SIMPLE_RADIAL" ||
-      camera.model == "RADIAL") {
-    k.fx = k.fy = p[0];
-    k.cx = p[1];
-    k.cy = p[2];
-    if (camera.model != "SIMPLE_PINHOLE") k.k1 = p[3];
-    if (camera.model == "RADIAL") k.k2 = p[4];
-  } else {  // PINHOLE, OPENCV
-    k.fx = p[0];
-    k.fy = p[1];
-    k.cx = p[2];
-    k.cy = p[3];
-    if (camera.model == "OPENCV") {
-      k.k1 = p[4];
-      k.k2 = p[5];
-      k.p1 = p[6];
-      k.p2 = p[7];
-    }
+  // One focal length (f, cx, cy, ...) or two (fx, fy, cx, cy, ...).
+  const bool one_focal = m == "SIMPLE_PINHOLE" || m == "SIMPLE_RADIAL" || m == "RADIAL" ||
+                         m == "SIMPLE_RADIAL_FISHEYE" || m == "RADIAL_FISHEYE";
+  const size_t first = one_focal ? 3 : 4;  // index of the first distortion parameter
+  k.fx = p[0];
+  k.fy = one_focal ? p[0] : p[1];
+  k.cx = p[first - 2];
+  k.cy = p[first - 1];
+  k.fisheye = m.find("FISHEYE") != std::string::npos;
+  auto param = [&](size_t i) { return first + i < p.size() ? p[first + i] : 0.0; };
+  if (m == "OPENCV" || m == "FULL_OPENCV") {
+    k.k1 = param(0);
+    k.k2 = param(1);
+    k.p1 = param(2);
+    k.p2 = param(3);
+    k.k3 = param(4);
+    if (param(5) != 0 || param(6) != 0 || param(7) != 0)
+      throw core::Error(origin +
+                        ": FULL_OPENCV with rational terms (k4 k5 k6 not 0) is not "
+                        "supported");
+  } else if (m != "SIMPLE_PINHOLE" && m != "PINHOLE") {
+    // SIMPLE_RADIAL, RADIAL and the fisheye models list k1, k2, ... in order.
+    k.k1 = param(0);
+    k.k2 = param(1);
+    k.k3 = param(2);
+    k.k4 = param(3);
   }
   if (!(k.fx > 0 && k.fy > 0) || k.width < 1 || k.height < 1)
     throw core::Error(origin + ": expected positive focal lengths and image size");
   return k;
+}
+
+ColmapCamera colmap_camera_of(const core::Intrinsics& k) {
+  ColmapCamera camera;
+  camera.width = k.width;
+  camera.height = k.height;
+  camera.params = {k.fx, k.fy, k.cx, k.cy};
+  if (k.fisheye) {
+    camera.model = "OPENCV_FISHEYE";
+    camera.params.insert(camera.params.end(), {k.k1, k.k2, k.k3, k.k4});
+  } else if (k.k4 != 0) {
+    throw core::Error("camera with a radial r^8 term (k4 " + std::to_string(k.k4) +
+                      "): no COLMAP model holds it");
+  } else if (k.k3 != 0) {
+    camera.model = "FULL_OPENCV";
+    camera.params.insert(camera.params.end(), {k.k1, k.k2, k.p1, k.p2, k.k3, 0, 0, 0});
+  } else if (k.has_distortion()) {
+    camera.model = "OPENCV";
+    camera.params.insert(camera.params.end(), {k.k1, k.k2, k.p1, k.p2});
+  } else {
+    camera.model = "PINHOLE";
+  }
+  return camera;
 }
 
 core::Camera colmap_camera(const ColmapModel& model, const ColmapImage& image) {

@@ -16,7 +16,9 @@ namespace ddhgs::io {
 
 struct ColmapCamera {
   int camera_id = 0;
-  // COLMAP model name: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV.
+  // COLMAP model name: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV,
+  // FULL_OPENCV (without rational terms), OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE
+  // or RADIAL_FISHEYE.
   std::string model;
   int64_t width = 0, height = 0;  // pixels
   std::vector<double> params;     // in COLMAP's order for the model
@@ -63,7 +65,7 @@ void write_colmap_binary(const std::filesystem::path& dir, const ColmapModel& mo
 void write_colmap_text(const std::filesystem::path& dir, const ColmapModel& model);
 
 // Number of parameters of a COLMAP camera model; core::Error naming origin
-// when the model is not supported (fisheye and thin-prism models).
+// when the model is not supported (FOV and thin-prism models).
 size_t colmap_param_count(const std::string& model, const std::string& origin);
 // COLMAP's numeric model id <-> name, for the binary format.
 std::string colmap_model_name(int model_id, const std::string& origin);
@@ -73,7 +75,11 @@ int colmap_model_id(const std::string& model, const std::string& origin);
 // image has one point3D id per keypoint: what both formats rely on.
 void check_colmap_model(const ColmapModel& model);
 
+// The camera's intrinsics and lens model (core::Error for FULL_OPENCV with
+// rational terms), and back: the simplest COLMAP model that holds them
+// (PINHOLE, OPENCV, FULL_OPENCV, OPENCV_FISHEYE; camera_id left 0).
 core::Intrinsics colmap_intrinsics(const ColmapCamera& camera);
+ColmapCamera colmap_camera_of(const core::Intrinsics& intrinsics);
 // World-to-camera (OpenCV) of image; core::Error when its camera is missing.
 core::Camera colmap_camera(const ColmapModel& model, const ColmapImage& image);
 

@@ -250,7 +250,8 @@ CubeInfo probe_cube(const fs::path& path, const CubeReadOptions& options) {
     case Format::Pt: {
       // A pickle has no separate header: the tensor must be loaded to see its shape.
       Cube cube = detail::read_pt(path, options);
-      return {cube.height(), cube.width(), cube.bands(), cube.type, cube.wavelengths_nm};
+      return {cube.height(), cube.width(),        cube.bands(),
+              cube.type,     cube.wavelengths_nm, cube.scale_factor};
     }
   }
   throw core::Error(path, "unknown cube format");
@@ -275,7 +276,7 @@ torch::Tensor samples_to_float(const torch::Tensor& raw, float scale) {
 }  // namespace
 
 torch::Tensor cube_to_float(const Cube& cube, double scale) {
-  if (scale <= 0) scale = default_scale(cube.type);
+  if (scale <= 0) scale = cube.scale_factor ? *cube.scale_factor : default_scale(cube.type);
   torch::Tensor raw = cube.data;
   if (!cube.ignore_value && raw.is_contiguous() &&
       raw.scalar_type() == detail::tensor_dtype(cube.type)) {

@@ -35,6 +35,8 @@ struct Cube {
   SampleType type = SampleType::F32;
   std::vector<double> wavelengths_nm;  // from the file's metadata; empty if none
   std::optional<double> ignore_value;  // ENVI "data ignore value"
+  // ENVI "reflectance scale factor": samples are reflectance times this.
+  std::optional<double> scale_factor;
 
   int64_t height() const { return data.size(0); }
   int64_t width() const { return data.size(1); }
@@ -52,11 +54,13 @@ struct CubeInfo {
   int64_t height = 0, width = 0, bands = 0;
   SampleType type = SampleType::F32;
   std::vector<double> wavelengths_nm;
+  std::optional<double> scale_factor;  // as in Cube
 };
 CubeInfo probe_cube(const std::filesystem::path& path, const CubeReadOptions& options = {});
 
-// Float32 [H, W, B] in [0, 1]: samples / scale (scale <= 0: default_scale(type)).
-// Samples equal to the ignore value become 0.
+// Float32 [H, W, B] in [0, 1]: samples / scale. scale <= 0: the cube's own
+// scale_factor when it has one, else default_scale(type). Samples equal to
+// the ignore value become 0.
 torch::Tensor cube_to_float(const Cube& cube, double scale = 0);
 
 // Writers (atomic: temporary name, then rename). data: [H, W, B]; dtype

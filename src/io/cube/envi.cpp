@@ -1,5 +1,6 @@
 // ENVI cubes: a text header (.hdr) beside a raw data file.
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -22,6 +23,7 @@ struct EnviHeader {
   bool big_endian = false;
   std::vector<double> wavelengths_nm;
   std::optional<double> ignore_value;
+  std::optional<double> scale_factor;  // "reflectance scale factor"
   fs::path hdr, data;
 };
 
@@ -231,6 +233,14 @@ EnviHeader read_header(const fs::path& path) {
   h.wavelengths_nm = parse_wavelengths(pairs, h.bands, h.hdr);
   if (pairs.count("data ignore value"))
     h.ignore_value = parse_number(pairs["data ignore value"], "data ignore value", h.hdr);
+  if (pairs.count("reflectance scale factor")) {
+    const char* key = "reflectance scale factor";
+    double factor = parse_number(pairs[key], key, h.hdr);
+    if (!(factor > 0) || !std::isfinite(factor))
+      throw core::Error(
+          h.hdr, "'reflectance scale factor' is '" + pairs[key] + "', expected a positive number");
+    h.scale_factor = factor;
+  }
   h.data = find_data_file(h.hdr);
   return h;
 }
@@ -283,6 +293,7 @@ Cube read_envi(const fs::path& path) {
   cube.data = data;
   cube.wavelengths_nm = h.wavelengths_nm;
   cube.ignore_value = h.ignore_value;
+  cube.scale_factor = h.scale_factor;
   require_finite(cube.data, h.data);
   return cube;
 }
@@ -294,6 +305,7 @@ CubeInfo probe_envi(const fs::path& path) {
   info.height = h.lines, info.width = h.samples, info.bands = h.bands;
   info.type = h.type;
   info.wavelengths_nm = h.wavelengths_nm;
+  info.scale_factor = h.scale_factor;
   return info;
 }
 

@@ -5,12 +5,14 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <set>
 
 #include "core/error.h"
-#include "core/log.h"
 #include "io/colmap/colmap.h"
+#include "io/scene/band_grid.h"
+#include "io/scene/colmap_beside.h"
 #include "io/transforms/transforms.h"
 
 namespace ddhgs::io {
@@ -31,7 +33,7 @@ struct Candidate {
 struct Found {
   std::string layout;
   std::vector<Candidate> views;
-  std::vector<std::string> warnings;
+  std::vector<std::string> warnings, notes;
   std::vector<double> wavelengths_nm;
   std::optional<double> scale;
   PointCloud points;
@@ -69,6 +71,46 @@ bool orthonormal(const core::Mat3& r) {
   return true;
 }
 
+// A transforms.json whose cubes are all missing (Hyper-NeRF's published
+// files point at cubes that were never released): one error instead of a
+// warning per frame, naming --rgb when the frames' RGB images are there.
+void require_some_cube(const fs::path& root, const TransformsFile& tf, const fs::path& file,
+                       int downscale) {
+  size_t images = 0;
+  for (const auto& f : tf.frames) {
+    if (!existing_data(root, f.hyperspectral_file_path, downscale).empty()) return;
+    if (!f.file_path.empty() && !existing_data(root, f.file_path, downscale).empty()) ++images;
+  }
+  std::string n = std::to_string(tf.frames.size());
+  std::string message = "none of the " + n +
+                        " hyperspectral cubes (hyperspectral_file_path) is on disk, e.g. " +
+                        (root / tf.frames.front().hyperspectral_file_path).string();
+  if (images > 0)
+    message += "; the frames' RGB images (file_path) are there for " + std::to_string(images) +
+               " of " + n + " frames: train on those as a 3-band scene with --rgb";
+  throw core::Error(file, message);
+}
+
+// Initial points: the file's ply_file_path, else the COLMAP model beside it
+// when it shares (or can be mapped into) the file's frame.
+void find_points(const fs::path& root, const TransformsFile& tf, const fs::path& file,
+                 Found& found) {
+  if (!tf.ply_file_path.empty()) {
+    fs::path ply = root / tf.ply_file_path;
+    if (fs::exists(ply))
+      found.points = read_point_ply(ply);
+    else
+      found.warnings.push_back(file.string() + ": ply_file_path " + ply.string() +
+                               " does not exist; no initial points");
+    return;
+  }
+  auto model_dir = find_colmap_model(root);
+  if (!model_dir) return;
+  PointsBeside beside = points_beside(*model_dir, tf, file);
+  found.points = beside.points;
+  (beside.points.xyz.defined() ? found.notes : found.warnings).push_back(beside.message);
+}
+
 Found from_transforms(const fs::path& root, const LoadOptions& options) {
   fs::path file = root / "transforms.json";
   TransformsFile tf = read_transforms(file);
@@ -84,6 +126,7 @@ Found from_transforms(const fs::path& root, const LoadOptions& options) {
   if (any_cube && !all_cubes && !options.rgb)
     throw core::Error(file, "some frames have hyperspectral_file_path and some do not");
   found.rgb = options.rgb || !any_cube;
+  if (!found.rgb) require_some_cube(root, tf, file, options.downscale);
 
   int repaired = 0;
   for (size_t i = 0; i < tf.frames.size(); ++i) {
@@ -117,14 +160,7 @@ Found from_transforms(const fs::path& root, const LoadOptions& options) {
   for (const auto& s : tf.train_files) found.train_keys.insert(normal(s));
   for (const auto& s : tf.test_files) found.test_keys.insert(normal(s));
 
-  if (!tf.ply_file_path.empty()) {
-    fs::path ply = root / tf.ply_file_path;
-    if (fs::exists(ply))
-      found.points = read_point_ply(ply);
-    else
-      found.warnings.push_back(file.string() + ": ply_file_path " + ply.string() +
-                               " does not exist; no initial points");
-  }
+  find_points(root, tf, file, found);
   return found;
 }
 
@@ -215,43 +251,41 @@ Found from_colmap(const fs::path& root, const fs::path& model_dir, const LoadOpt
   return found;
 }
 
-// Assumed grid when neither the dataset nor the cubes name wavelengths: the
-// two sensors of the Hyper-NeRF data by band count, else BaySpec's range.
-std::vector<double> assumed_wavelengths(int64_t bands, std::string* range) {
-  double lo = 400, hi = 1100;
-  if (bands == 128) lo = 370;
-  *range = std::to_string(int(lo)) + "-" + std::to_string(int(hi)) + " nm";
-  std::vector<double> out;
-  for (int64_t b = 0; b < bands; ++b)
-    out.push_back(bands > 1 ? lo + (hi - lo) * double(b) / double(bands - 1) : lo);
-  return out;
-}
-
-void select_bands(Scene& scene, const std::vector<double>& source_nm, const fs::path& origin) {
-  const LoadOptions& o = scene.options;
-  core::require(o.bin >= 1, "--bin must be at least 1");
-  std::vector<int> kept;
-  for (size_t b = 0; b < source_nm.size(); ++b)
-    if (source_nm[b] >= o.band_min_nm && source_nm[b] <= o.band_max_nm) kept.push_back(int(b));
-  if (kept.empty())
-    throw core::Error(origin, "no band lies in the requested range " +
-                                  std::to_string(o.band_min_nm) + "-" +
-                                  std::to_string(o.band_max_nm) + " nm");
-  size_t groups = kept.size() / size_t(o.bin);
-  if (groups == 0)
-    throw core::Error(origin, "only " + std::to_string(kept.size()) +
-                                  " bands selected, fewer than --bin " + std::to_string(o.bin));
-  if (kept.size() % size_t(o.bin) != 0)
-    scene.warnings.push_back("binning by " + std::to_string(o.bin) + " drops the last " +
-                             std::to_string(kept.size() % size_t(o.bin)) + " band(s)");
-  kept.resize(groups * size_t(o.bin));
-  scene.band_index = kept;
-  scene.wavelengths_nm.clear();
-  for (size_t g = 0; g < groups; ++g) {
-    double sum = 0;
-    for (int k = 0; k < o.bin; ++k) sum += source_nm[size_t(kept[g * size_t(o.bin) + size_t(k)])];
-    scene.wavelengths_nm.push_back(sum / o.bin);
+// Views of cameras with lens distortion share one Undistortion per distinct
+// camera and see its pinhole camera from here on.
+void undistort_cameras(Scene& scene, const fs::path& origin) {
+  std::vector<std::shared_ptr<const Undistortion>> lenses;
+  size_t distorted = 0;
+  for (View& v : scene.views) {
+    const core::Intrinsics& lens = v.camera.intrinsics;
+    if (!lens.has_distortion()) continue;
+    ++distorted;
+    auto same = std::find_if(lenses.begin(), lenses.end(),
+                             [&](const auto& u) { return u->lens() == lens; });
+    if (same == lenses.end()) {
+      try {
+        lenses.push_back(std::make_shared<const Undistortion>(lens));
+      } catch (const core::Error& e) {
+        throw core::Error(origin, e.what());
+      }
+      same = std::prev(lenses.end());
+    }
+    v.undistortion = *same;
+    v.camera.intrinsics = (*same)->pinhole();
   }
+  if (distorted == 0) return;
+  double lo = INFINITY, hi = 0;
+  for (const auto& u : lenses) {
+    lo = std::min(lo, u->pinhole().fx / u->lens().fx);
+    hi = std::max(hi, u->pinhole().fx / u->lens().fx);
+  }
+  char scale[64];
+  std::snprintf(scale, sizeof scale, lo == hi ? "%.4g" : "%.4g-%.4g", lo, hi);
+  scene.notes.push_back("undistorting " + std::to_string(distorted) + " views (" +
+                        std::to_string(lenses.size()) +
+                        " camera(s) with lens distortion) to pinhole cameras of the same size, "
+                        "focal lengths x" +
+                        scale + ": cropped to what the lens saw, no blank pixels");
 }
 
 void assign_split(Scene& scene, const Found& found, const std::vector<Candidate>& kept,
@@ -303,6 +337,7 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
   scene->layout = found.layout;
   scene->options = options;
   scene->warnings = found.warnings;
+  scene->notes = found.notes;
   scene->points = found.points;
 
   // Sorted as nerfstudio sorts frames, so split indices match its own.
@@ -318,31 +353,18 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
   CubeInfo first = probe_cube(kept.front().data_path, CubeReadOptions{options.layout});
   scene->stored_type = first.type;
   scene->source_bands = first.bands;
-  scene->scale = options.scale ? *options.scale
-                 : found.scale ? *found.scale
-                               : default_scale(first.type);
+  // LoadOptions::scale, then the dataset's scale, then the cube's own (ENVI's
+  // reflectance scale factor), then the sample type's maximum.
+  scene->scale = options.scale        ? *options.scale
+                 : found.scale        ? *found.scale
+                 : first.scale_factor ? *first.scale_factor
+                                      : default_scale(first.type);
   core::require(scene->scale > 0, "--scale must be positive");
 
-  std::vector<double> source_nm;
-  if (found.rgb) {
-    core::require(first.bands == 3, kept.front().data_path,
-                  "expected an RGB image (3 channels), found " + std::to_string(first.bands));
-    source_nm = rgb_wavelengths_nm();
-  } else if (!found.wavelengths_nm.empty()) {
-    if (int64_t(found.wavelengths_nm.size()) != first.bands)
-      throw core::Error(origin, "lists " + std::to_string(found.wavelengths_nm.size()) +
-                                    " wavelengths, but " + kept.front().data_path.string() +
-                                    " has " + std::to_string(first.bands) + " bands");
-    source_nm = found.wavelengths_nm;
-  } else if (int64_t(first.wavelengths_nm.size()) == first.bands) {
-    source_nm = first.wavelengths_nm;
-  } else {
-    std::string range;
-    source_nm = assumed_wavelengths(first.bands, &range);
-    scene->warnings.push_back("no wavelengths in the dataset or its cubes; assuming " +
-                              std::to_string(first.bands) + " bands evenly spaced over " + range);
-  }
-  select_bands(*scene, source_nm, origin);
+  select_bands(*scene,
+               source_wavelengths(*scene, found.rgb, found.wavelengths_nm, first.wavelengths_nm,
+                                  first.bands, origin, kept.front().data_path),
+               found.rgb, origin);
 
   for (const auto& c : kept) {
     View v;
@@ -355,14 +377,9 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
   }
   area_factor(kept.front().data_path, first.height, first.width,
               scene->views.front().camera.intrinsics, options.downscale);
+  undistort_cameras(*scene, origin);
 
   assign_split(*scene, found, kept, origin);
-  const size_t shown = 5;
-  for (size_t i = 0; i < scene->warnings.size() && i < shown; ++i)
-    core::log_warn(scene->warnings[i]);
-  if (scene->warnings.size() > shown)
-    core::log_warn("... and " + std::to_string(scene->warnings.size() - shown) +
-                   " more warnings (ddhgs info lists them all)");
   return scene;
 }
 

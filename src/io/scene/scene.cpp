@@ -9,6 +9,7 @@
 
 #include "core/colour.h"
 #include "core/error.h"
+#include "core/log.h"
 #include "io/scene/scene.h"
 
 namespace ddhgs::io {
@@ -85,6 +86,14 @@ int area_factor(const fs::path& path, int64_t height, int64_t width, const core:
                                              : ""));
 }
 
+void log_scene_messages(const Scene& scene, size_t shown) {
+  for (const auto& note : scene.notes) core::log_info(note);
+  for (size_t i = 0; i < scene.warnings.size() && i < shown; ++i) core::log_warn(scene.warnings[i]);
+  if (scene.warnings.size() > shown)
+    core::log_warn("... and " + std::to_string(scene.warnings.size() - shown) +
+                   " more warnings (ddhgs info lists them all)");
+}
+
 bool Scene::has_clean() const {
   return std::any_of(views.begin(), views.end(),
                      [](const View& v) { return !v.clean_path.empty(); });
@@ -97,7 +106,8 @@ size_t Scene::view_bytes() const {
   return most * size_t(bands()) * bytes_per_sample(stored_type);
 }
 
-Cube Scene::load_view(const fs::path& path, const core::Intrinsics& target) const {
+Cube Scene::load_view(const fs::path& path, const View& view) const {
+  const core::Intrinsics& target = view.camera.intrinsics;
   Cube cube = read_cube(path, CubeReadOptions{options.layout});
   require_bands(path, cube.bands(), source_bands);
   int64_t h = cube.height(), w = cube.width();
@@ -111,7 +121,7 @@ Cube Scene::load_view(const fs::path& path, const core::Intrinsics& target) cons
   int bin = std::max(options.bin, 1);
   if (bin > 1 || reduce || cube.ignore_value) {
     // Average in file units; ignored samples count as 0, as cube_to_float maps them.
-    Cube selected{data, cube.type, {}, cube.ignore_value};
+    Cube selected{data, cube.type, {}, cube.ignore_value, {}};
     torch::Tensor values = cube_to_float(selected, 1.0);
     int64_t kept = values.size(2);
     if (bin > 1) values = values.reshape({h, w, kept / bin, bin}).mean(3);
@@ -124,13 +134,15 @@ Cube Scene::load_view(const fs::path& path, const core::Intrinsics& target) cons
     }
     data = to_stored(values, cube.type);
   }
+  if (view.undistortion) data = view.undistortion->apply(data, cube.type, path.string());
   Cube out;
   out.data = data.contiguous();
   out.type = cube.type;
+  out.scale_factor = cube.scale_factor;
   return out;
 }
 
-Cube Scene::cached_view(const fs::path& path, const core::Intrinsics& target) const {
+Cube Scene::cached_view(const fs::path& path, const View& view) const {
   std::string key = path.string();
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -142,7 +154,7 @@ Cube Scene::cached_view(const fs::path& path, const core::Intrinsics& target) co
   }
   // Decoding runs unlocked so threads load different views in parallel; a
   // view loaded twice at once is stored once.
-  Cube cube = load_view(path, target);
+  Cube cube = load_view(path, view);
   size_t budget = options.cache_mb * (size_t(1) << 20);
   std::lock_guard<std::mutex> lock(mutex_);
   if (cube.bytes() > budget || cache_.count(key)) return cube;
@@ -162,7 +174,7 @@ torch::Tensor Scene::image(int view) const {
   core::require(view >= 0 && view < int(views.size()), root,
                 "view index " + std::to_string(view) + " out of range");
   const View& v = views[size_t(view)];
-  Cube cube = cached_view(v.data_path, v.camera.intrinsics);
+  Cube cube = cached_view(v.data_path, v);
   return cube_to_float(cube, cube.type == stored_type ? scale : 0);
 }
 
@@ -171,7 +183,7 @@ torch::Tensor Scene::clean_image(int view) const {
                 "view index " + std::to_string(view) + " out of range");
   const View& v = views[size_t(view)];
   if (v.clean_path.empty()) return {};
-  Cube cube = cached_view(v.clean_path, v.camera.intrinsics);
+  Cube cube = cached_view(v.clean_path, v);
   // A clean cube stored in another type (e.g. float beside uint8 noisy
   // cubes) is scaled by its own type's default.
   return cube_to_float(cube, cube.type == stored_type ? scale : 0);

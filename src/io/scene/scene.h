@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <list>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -22,6 +23,7 @@
 #include "core/camera.h"
 #include "io/cube/cube.h"
 #include "io/ply/ply.h"
+#include "io/undistort/undistort.h"
 
 namespace ddhgs::io {
 
@@ -38,9 +40,12 @@ struct LoadOptions {
 
 struct View {
   std::string name;                  // file stem
-  core::Camera camera;               // at the loaded (downscaled) resolution
+  core::Camera camera;               // pinhole, at the loaded (downscaled) resolution
   std::filesystem::path data_path;   // cube, or image for RGB scenes
   std::filesystem::path clean_path;  // empty when there is no clean ground truth
+  // A camera with lens distortion: its views are undistorted to
+  // camera.intrinsics as they are decoded. Null for a pinhole camera.
+  std::shared_ptr<const Undistortion> undistortion;
 };
 
 class Scene {
@@ -54,6 +59,7 @@ class Scene {
   SampleType stored_type = SampleType::F32;
   double scale = 1;                   // divisor applied to stored samples
   std::vector<std::string> warnings;  // problems found while loading
+  std::vector<std::string> notes;     // choices made while loading, worth one info line each
 
   int64_t bands() const { return int64_t(wavelengths_nm.size()); }
   bool has_clean() const;
@@ -70,11 +76,12 @@ class Scene {
   int64_t source_bands = 0;     // bands of every cube file before selection
 
  private:
-  // The cube at path, reduced to target's size (area averaging when the file
-  // is at full resolution), band-selected and binned, in its stored type.
-  Cube load_view(const std::filesystem::path& path, const core::Intrinsics& target) const;
+  // The cube at path (view's data or clean file), reduced to the view's size
+  // (area averaging when the file is at full resolution), band-selected,
+  // binned and undistorted, in its stored type.
+  Cube load_view(const std::filesystem::path& path, const View& view) const;
   // Cached load_view; evicts least recently used entries beyond cache_mb.
-  Cube cached_view(const std::filesystem::path& path, const core::Intrinsics& target) const;
+  Cube cached_view(const std::filesystem::path& path, const View& view) const;
   mutable std::mutex mutex_;
   mutable std::list<std::string> lru_;  // most recently used first
   mutable std::unordered_map<std::string, Cube> cache_;
@@ -82,9 +89,15 @@ class Scene {
 };
 
 // Detects the layout and reads metadata (not the cubes). Throws core::Error on
-// a malformed dataset; missing frames are skipped with a warning.
+// a malformed dataset; missing frames are skipped with a warning. Prints
+// nothing: warnings and notes are collected in the scene (log_scene_messages).
 std::unique_ptr<Scene> load_scene(const std::filesystem::path& dir,
                                   const LoadOptions& options = {});
+
+// The one place a loaded scene's notes (info) and warnings are printed, each
+// on its own line; beyond `shown` warnings, one line says how many more
+// `ddhgs info` lists.
+void log_scene_messages(const Scene& scene, size_t shown = 5);
 
 // The Hyper-NeRF rule: train = floor(linspace(0, n-1, ceil(0.9 n))), test = rest.
 // Computed in double exactly as numpy/nerfstudio do, so indices match theirs.

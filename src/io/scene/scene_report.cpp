@@ -43,7 +43,7 @@ SceneReport inspect_scene(const Scene& scene, int sample_reads) {
   for (const View& v : scene.views) {
     const core::Intrinsics& k = v.camera.intrinsics;
     report.mixed_sizes = report.mixed_sizes || k.width != first.width || k.height != first.height;
-    report.distortion = report.distortion || k.has_distortion();
+    if (v.undistortion) ++report.distorted_views;
     size_t values = size_t(k.width) * size_t(k.height) * size_t(scene.bands());
     report.scene_bytes += values * sample_bytes;
     report.scene_bytes_f32 += values * sizeof(float);

@@ -12,7 +12,7 @@ namespace ddhgs::io {
 struct SceneReport {
   int width = 0, height = 0;  // pixels of the first view, as loaded
   bool mixed_sizes = false;   // views differ in size (several COLMAP cameras)
-  bool distortion = false;    // some camera has k1 k2 p1 p2
+  int distorted_views = 0;    // views whose camera has lens distortion (undistorted at load)
   size_t scene_bytes = 0;     // all views in the stored type, as loaded
   size_t scene_bytes_f32 = 0;
   int clean_views = 0;

@@ -97,12 +97,6 @@ core::Intrinsics read_intrinsics(const Reader& in, const json& frame, const json
     return v ? in.number(*v, where + "." + key) : fallback;
   };
 
-  if (const json* model = in.lookup(frame, root, "camera_model")) {
-    std::string name = in.string(*model, where + ".camera_model");
-    if (name != "OPENCV" && name != "PINHOLE" && name != "SIMPLE_PINHOLE")
-      in.fail(where + ".camera_model", "unsupported camera model \"" + name +
-                                           "\" (expected OPENCV, PINHOLE or SIMPLE_PINHOLE)");
-  }
   core::Intrinsics k;
   double w = required("w"), h = required("h");
   if (w < 1 || h < 1 || w != std::floor(w) || h != std::floor(h))
@@ -117,8 +111,27 @@ core::Intrinsics read_intrinsics(const Reader& in, const json& frame, const json
   k.cy = optional("cy", 0.5 * k.height);
   k.k1 = optional("k1", 0);
   k.k2 = optional("k2", 0);
+  k.k3 = optional("k3", 0);
+  k.k4 = optional("k4", 0);
   k.p1 = optional("p1", 0);
   k.p2 = optional("p2", 0);
+  // No camera_model: OPENCV, nerfstudio's default.
+  std::string model = "OPENCV";
+  if (const json* v = in.lookup(frame, root, "camera_model"))
+    model = in.string(*v, where + ".camera_model");
+  if (model == "OPENCV_FISHEYE") {
+    k.fisheye = true;
+    if (k.p1 != 0 || k.p2 != 0)
+      in.fail(where, "OPENCV_FISHEYE has no tangential terms, but p1 or p2 is not 0");
+  } else if (model == "PINHOLE" || model == "SIMPLE_PINHOLE") {
+    if (k.has_distortion())
+      in.fail(where, "camera_model " + model +
+                         " has no lens distortion, but k1..k4, p1 or p2 is not 0 (use OPENCV)");
+  } else if (model != "OPENCV") {
+    in.fail(where + ".camera_model",
+            "unsupported camera model \"" + model +
+                "\" (expected OPENCV, OPENCV_FISHEYE, PINHOLE or SIMPLE_PINHOLE)");
+  }
   return k;
 }
 
@@ -155,6 +168,8 @@ TransformsFile parse(const Reader& in, const json& root) {
   }
   if (const json* v = in.find(root, "ply_file_path"))
     file.ply_file_path = in.string(*v, "ply_file_path");
+  if (const json* v = in.find(root, "applied_transform"))
+    file.applied_transform = in.matrix(*v, "applied_transform");
   if (const json* v = in.find(root, "scale")) {
     double s = in.number(*v, "scale");
     if (s <= 0) in.fail("scale", "expected a positive divisor");
@@ -167,25 +182,29 @@ TransformsFile parse(const Reader& in, const json& root) {
   return file;
 }
 
-bool same_intrinsics(const core::Intrinsics& a, const core::Intrinsics& b) {
-  return a.fx == b.fx && a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.width == b.width &&
-         a.height == b.height && a.k1 == b.k1 && a.k2 == b.k2 && a.p1 == b.p1 && a.p2 == b.p2;
-}
-
 void put_intrinsics(json& out, const core::Intrinsics& k) {
-  out["camera_model"] = k.has_distortion() ? "OPENCV" : "PINHOLE";
+  out["camera_model"] = k.fisheye ? "OPENCV_FISHEYE" : k.has_distortion() ? "OPENCV" : "PINHOLE";
   out["fl_x"] = k.fx;
   out["fl_y"] = k.fy;
   out["cx"] = k.cx;
   out["cy"] = k.cy;
   out["w"] = k.width;
   out["h"] = k.height;
-  if (k.has_distortion()) {
-    out["k1"] = k.k1;
-    out["k2"] = k.k2;
+  if (!k.has_distortion()) return;
+  out["k1"] = k.k1;
+  out["k2"] = k.k2;
+  out["k3"] = k.k3;
+  out["k4"] = k.k4;
+  if (!k.fisheye) {
     out["p1"] = k.p1;
     out["p2"] = k.p2;
   }
+}
+
+json matrix_json(const core::Mat4& m, int rows) {
+  json out = json::array();
+  for (int r = 0; r < rows; ++r) out.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+  return out;
 }
 
 }  // namespace
@@ -211,7 +230,7 @@ void write_transforms(const fs::path& path, const TransformsFile& file) {
   core::require(!file.frames.empty(), path, "refusing to write transforms.json without frames");
   bool shared = true;
   for (const auto& f : file.frames)
-    shared = shared && same_intrinsics(f.intrinsics, file.frames.front().intrinsics);
+    shared = shared && f.intrinsics == file.frames.front().intrinsics;
 
   json root = json::object();
   if (shared) put_intrinsics(root, file.frames.front().intrinsics);
@@ -221,17 +240,15 @@ void write_transforms(const fs::path& path, const TransformsFile& file) {
     if (!f.file_path.empty()) frame["file_path"] = f.file_path;
     if (!f.hyperspectral_file_path.empty())
       frame["hyperspectral_file_path"] = f.hyperspectral_file_path;
-    json matrix = json::array();
-    for (int r = 0; r < 4; ++r)
-      matrix.push_back({f.camera_to_world_gl(r, 0), f.camera_to_world_gl(r, 1),
-                        f.camera_to_world_gl(r, 2), f.camera_to_world_gl(r, 3)});
-    frame["transform_matrix"] = std::move(matrix);
+    frame["transform_matrix"] = matrix_json(f.camera_to_world_gl, 4);
     if (!shared) put_intrinsics(frame, f.intrinsics);
     frames.push_back(std::move(frame));
   }
   root["frames"] = std::move(frames);
   if (!file.wavelengths_nm.empty()) root["wavelengths"] = file.wavelengths_nm;
   if (!file.ply_file_path.empty()) root["ply_file_path"] = file.ply_file_path;
+  // 3 x 4, as nerfstudio writes it.
+  if (file.applied_transform) root["applied_transform"] = matrix_json(*file.applied_transform, 3);
   if (file.scale) root["scale"] = *file.scale;
   if (!file.train_files.empty()) root["train_filenames"] = file.train_files;
   if (!file.test_files.empty()) root["test_filenames"] = file.test_files;

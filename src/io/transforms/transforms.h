@@ -20,7 +20,10 @@ struct TransformsFile {
   std::vector<TransformsFrame> frames;
   std::vector<double> wavelengths_nm;  // optional top-level "wavelengths"
   std::string ply_file_path;           // optional initial points
-  std::optional<double> scale;         // optional divisor for integer cubes
+  // nerfstudio's "applied_transform" (3x4): the map from the COLMAP model's
+  // world frame to this file's, when the file was made from one.
+  std::optional<core::Mat4> applied_transform;
+  std::optional<double> scale;  // optional divisor for integer cubes
   // Optional explicit split: file_path values of the train / test frames.
   std::vector<std::string> train_files, test_files;
 };
