@@ -124,9 +124,8 @@ void write_rows(const fs::path& path, const std::string& header, int64_t entries
                 const std::vector<Block>& blocks) {
   int64_t record = 0;
   for (const auto& block : blocks) record += block.data.size(1) * block.data.element_size();
-  write_atomically(path, [&](const fs::path& tmp) {
-    std::ofstream out(tmp, std::ios::binary);
-    out.write(header.data(), std::streamsize(header.size()));
+  write_stream_atomically(path, [&](FileSink& out) {
+    out.write(header.data(), header.size());
     const int64_t chunk = std::max<int64_t>(1, (int64_t(1) << 22) / std::max<int64_t>(record, 1));
     std::vector<char> buffer(size_t(std::min(chunk, entries) * record));
     for (int64_t first = 0; first < entries; first += chunk) {
@@ -139,10 +138,8 @@ void write_rows(const fs::path& path, const std::string& header, int64_t entries
                       size_t(bytes));
           p += bytes;
         }
-      out.write(buffer.data(), std::streamsize(n * record));
+      out.write(buffer.data(), size_t(n * record));
     }
-    out.flush();
-    if (!out) throw core::Error(path, "write failed (disk full?)");
   });
 }
 
