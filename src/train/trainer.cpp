@@ -13,6 +13,7 @@
 #include "model/densify.h"
 #include "train/config.h"
 #include "train/init.h"
+#include "train/run_checks.h"
 
 namespace ddhgs::train {
 
@@ -92,9 +93,11 @@ Trainer::Trainer(json config, RunPaths run) : config_(std::move(config)), run_(s
 
 void Trainer::load_scene() {
   fs::path data = config_.at("data").at("path").get<std::string>();
+  core::require(!data.empty(), run_.config(), "data.path is empty: no dataset to train on");
   scene_ = io::load_scene(data, load_options(config_));
   for (const auto& w : scene_->warnings) core::log_warn(w);
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
+  check_scene_before_training(*scene_);
   background_ = background(config_, scene_->bands());
   extent_ = scene_extent(*scene_, scene_->train);
   const json& loss = config_.at("loss");
@@ -360,6 +363,7 @@ void Trainer::finetune_step(int64_t iteration, json& record) {
 }
 
 void Trainer::save(bool numbered) {
+  require_finite_parameters(state_, run_.root);
   save_checkpoint(run_.checkpoint(), state_);
   if (numbered) {
     io::write_atomically(run_.checkpoint_at(state_.iteration), [&](const fs::path& tmp) {
@@ -385,7 +389,7 @@ json Trainer::test_psnr() {
       ++n_clean;
     }
   }
-  json out;
+  json out = json::object();
   if (scene_->test.empty()) return out;
   out["test_psnr"] = noisy / double(scene_->test.size());
   if (n_clean > 0) out["test_psnr_clean"] = clean / n_clean;
@@ -491,6 +495,7 @@ TrainStatus Trainer::run_steps() {
       finetune_step(iteration, record);
     else
       step(iteration, record);
+    require_finite_record(record, run_.root);
     state_.iteration = iteration;
     // The Gaussians' share of the time, for seconds per iteration.
     if (iteration == iterations) state_.meta["gaussian_seconds"] = elapsed();
