@@ -69,10 +69,12 @@ std::vector<int> numbered_properties(const fs::path& path, const Element& vertex
 // Columns filling `count` consecutive floats per entry of a [entries, count] tensor.
 void add_columns(std::vector<Column>& columns, const std::vector<int>& properties,
                  torch::Tensor& target) {
-  float* base = target.data_ptr<float>();
+  // No entries: no storage, and no offset may be applied to its null pointer
+  // (undefined behaviour, found by UBSan); nothing is written through it.
+  float* base = target.numel() > 0 ? target.data_ptr<float>() : nullptr;
   const int64_t stride = target.numel() / std::max<int64_t>(target.size(0), 1);
   for (size_t i = 0; i < properties.size(); ++i)
-    columns.push_back({properties[i], base + i, nullptr, stride});
+    columns.push_back({properties[i], base ? base + i : nullptr, nullptr, stride});
 }
 
 std::vector<double> parse_wavelengths(const fs::path& path, const ply::Header& header) {
