@@ -236,10 +236,21 @@ json row_config(const AblationOptions& options, const AblationRow& row) {
   return config;
 }
 
+// Every row is judged on the held-out views: without them the table would
+// be empty after hours of training.
+void require_test_views(const json& config) {
+  const fs::path data = config.at("data").at("path").get<std::string>();
+  if (io::load_scene(data, train::load_options(config))->test.empty())
+    throw core::Error(data,
+                      "has no held-out views, and an ablation compares test metrics "
+                      "(a scene needs 10 or more views, or test_filenames)");
+}
+
 json run_ablation(const AblationOptions& options) {
   core::require(fs::is_directory(options.data), options.data, "no such dataset folder");
   std::vector<json> configs;
   for (const AblationRow& row : options.rows) configs.push_back(row_config(options, row));
+  require_test_views(configs.front());
   // Rows are trained into an earlier ablation folder (reused or continued),
   // never into a folder ddhgs did not make.
   const io::OutputRequest request{options.out, io::OutputKind::Ablation, true, {options.data}, ""};

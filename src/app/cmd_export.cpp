@@ -1,6 +1,7 @@
 // `ddhgs export RUN`: the trained model as a standard three-channel 3DGS file
 // (PLY with SH, or .splat) for the viewers and editors people already use,
 // coloured by pseudo-RGB, three chosen bands or one band, optionally cropped.
+#include <cctype>
 #include <cstdio>
 #include <filesystem>
 
@@ -9,6 +10,7 @@
 #include "app/trained_run.h"
 #include "core/error.h"
 #include "eval/rgb_export.h"
+#include "io/files/output_file.h"
 #include "io/ply/ply.h"
 #include "io/splat/splat.h"
 
@@ -58,7 +60,30 @@ eval::Crop choose_crop(const ExportArgs& args) {
   return crop;
 }
 
-int run(const ExportArgs& args, const CLI::App& cmd) {
+// The format: --format, else the extension of --out (.splat), else ply.
+std::string choose_format(const ExportArgs& args, const CLI::App& cmd) {
+  if (cmd.count("--format") > 0 || args.out.empty()) return args.format;
+  std::string ext = fs::path(args.out).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".splat" ? "splat" : "ply";
+}
+
+// Before any work: a file of the format's kind that is none of the run's own
+// files (its gaussians.ply above all).
+void check_out(const fs::path& out, const std::string& format, const fs::path& run) {
+  io::require_extension(out, "--out", {format == "splat" ? ".splat" : ".ply"});
+  std::vector<std::pair<std::string, fs::path>> run_files;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(run, ec))
+    if (entry.is_regular_file(ec))
+      run_files.push_back({"a file of the run " + run.string(), entry});
+  io::require_distinct(out, "--out", run_files);
+}
+
+int run(const ExportArgs& given, const CLI::App& cmd) {
+  ExportArgs args = given;
+  args.format = choose_format(given, cmd);
+  if (!args.out.empty()) check_out(args.out, args.format, args.run);
   RunModel run = open_run_model(args.run);
   const eval::ColourMapping mapping = choose_mapping(args, cmd, run.ply);
   const int64_t total = run.ply.means.size(0);
@@ -96,7 +121,8 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--out", args->out, "Output file (default RUN/export/gaussians_rgb.FORMAT)");
   cmd->add_option("--format", args->format,
                   "ply: 3DGS PLY with f_dc_0..2 and f_rest_* (view dependence kept); splat: "
-                  "antimatter15 .splat, 32 bytes per Gaussian, no view dependence")
+                  "antimatter15 .splat, 32 bytes per Gaussian, no view dependence (default: "
+                  "from the extension of --out, else ply)")
       ->check(CLI::IsMember({"ply", "splat"}))
       ->capture_default_str();
   auto* bands = cmd->add_option(

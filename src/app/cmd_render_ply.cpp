@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "io/cube/cube.h"
+#include "io/files/output_file.h"
 #include "io/image/image.h"
 #include "io/ply/ply.h"
 #include "io/transforms/camera_json.h"
@@ -53,8 +54,23 @@ torch::Tensor preview_picture(const torch::Tensor& image,  // [H, W, N]
   return (rgb / std::max(rgb.max().item<float>(), 1e-6f)).clamp(0, 1);
 }
 
+// Before any work: outputs that overwrite no input (said as such before a
+// wrong extension), of the right kind.
+void check_outputs(const RenderPlyArgs& args) {
+  io::require_distinct(args.out, "--out",
+                       {{"the input PLY", args.ply}, {"the --camera file", args.camera}});
+  io::require_extension(args.out, "--out", {".npy"});
+  if (args.preview.empty()) return;
+  io::require_distinct(args.preview, "--preview",
+                       {{"the input PLY", args.ply},
+                        {"the --camera file", args.camera},
+                        {"the --out file", args.out}});
+  io::require_extension(args.preview, "--preview", {".png"});
+}
+
 int run(const RenderPlyArgs& args) {
   const auto start = std::chrono::steady_clock::now();
+  check_outputs(args);
   io::GaussianPly scene = io::read_gaussian_ply(args.ply);
   const core::Camera camera = io::read_camera_json(args.camera);
   const int file_degree = scene.sh_degree();

@@ -96,6 +96,8 @@ int run_resume(const TrainArgs& a, CLI::App* cmd) {
     if (cmd->get_option(flag)->count() > 0)
       throw core::Error(flag, "cannot change a run being resumed (only --iterations)");
   if (!a.data.empty()) throw core::Error("--resume", "give the run folder only, not a dataset");
+  if (cmd->get_option("--iterations")->count() > 0 && a.iterations < 1)
+    throw core::Error("--iterations", "is " + std::to_string(a.iterations) + ", expected >= 1");
   auto trainer = train::Trainer::resume({a.resume}, a.iterations);
   auto status = trainer->run();
   if (status == train::TrainStatus::Interrupted) return interrupted_exit_code();

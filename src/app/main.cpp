@@ -4,11 +4,32 @@
 
 #include <algorithm>
 #include <iostream>
+#include <new>
+#include <string>
 
 #include "app/registry.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/threads.h"
+
+namespace {
+
+// A LibTorch error that escaped every reader's own check, as one line: its
+// first line without the "[enforce fail at alloc_cpu.cpp:75] err == 0. "
+// location tag, and an allocation failure said as such.
+std::string torch_error_text(const c10::Error& e) {
+  std::string text = e.what_without_backtrace();
+  text = text.substr(0, text.find('\n'));
+  if (text.rfind("[enforce fail at ", 0) == 0 && text.find("] ") != std::string::npos)
+    text = text.substr(text.find("] ") + 2);
+  const size_t tried = text.find("you tried to allocate");
+  if (tried != std::string::npos)
+    return "out of memory: " + text.substr(tried, text.find('.', tried) - tried) +
+           " (is a size in the input, or a flag, far too large?)";
+  return text;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace ddhgs;
@@ -19,7 +40,8 @@ int main(int argc, char** argv) {
   app.fallthrough();
   int threads = 0;
   bool quiet = false, verbose = false;
-  app.add_option("--threads", threads, "Worker threads (default: $DDHGS_THREADS or all cores)");
+  app.add_option("--threads", threads,
+                 "Worker threads (default: $DDHGS_THREADS or all cores; at most 4 per core)");
   app.add_flag("-q,--quiet", quiet, "Only print warnings and errors");
   app.add_flag("-v,--verbose", verbose, "Print debugging details");
 
@@ -42,6 +64,11 @@ int main(int argc, char** argv) {
   core::set_log_level(quiet     ? core::LogLevel::Quiet
                       : verbose ? core::LogLevel::Verbose
                                 : core::LogLevel::Normal);
+  // Checked here, not by CLI11, whose range message spells out DBL_MAX.
+  if (threads < 0) {
+    std::cerr << "error: --threads: is " << threads << ", expected >= 0 (0: all cores)\n";
+    return 1;
+  }
   core::configure_threads(threads);
   try {
     for (auto& [sub, run] : actions)
@@ -50,10 +77,13 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << e.what() << "\n";
     return 1;
   } catch (const c10::Error& e) {
-    std::cerr << "error: " << e.what_without_backtrace() << "\n";
+    std::cerr << "error: " << torch_error_text(e) << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "error: out of memory (is a size in the input, or a flag, far too large?)\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    std::cerr << "error: " << core::message_of(e) << "\n";
     return 1;
   }
   return 0;

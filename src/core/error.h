@@ -22,4 +22,16 @@ inline void require(bool ok, const std::string& message) {
   if (!ok) throw Error(message);
 }
 
+// A library's message without its internal tag: nlohmann-json's
+// "[json.exception.parse_error.101] parse error at line 1, column 13: ..."
+// becomes "parse error at line 1, column 13: ...".
+inline std::string message_of(const std::exception& e) {
+  std::string text = e.what();
+  if (text.rfind("[json.exception.", 0) == 0) {
+    const size_t end = text.find("] ");
+    if (end != std::string::npos) text = text.substr(end + 2);
+  }
+  return text;
+}
+
 }  // namespace ddhgs::core

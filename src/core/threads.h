@@ -3,8 +3,12 @@
 
 namespace ddhgs::core {
 
+// More threads than this per core are capped (with a warning).
+constexpr int kMaxThreadsPerCore = 4;
+
 // Sets LibTorch's intra-op threads and OpenMP's thread count. requested <= 0
-// means: $DDHGS_THREADS if set, else the number of cores. Returns the count.
+// means: $DDHGS_THREADS if set, else the number of cores. At most
+// kMaxThreadsPerCore per core. Returns the count.
 int configure_threads(int requested = 0);
 
 // Threads the renderer and other hand-written parallel loops should use.

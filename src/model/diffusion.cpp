@@ -348,7 +348,7 @@ Denoiser load_denoiser(torch::serialize::InputArchive& archive, const std::strin
     // Denoisers written before the residual parameterisation predicted eps.
     denoiser.prediction = parse_prediction(j.value("prediction", "eps"), file.string());
   } catch (const nlohmann::json::exception& e) {
-    throw core::Error(file, "denoiser noise schedule is malformed: " + std::string(e.what()));
+    throw core::Error(file, "denoiser noise schedule is malformed: " + core::message_of(e));
   }
   denoiser.unet = load_unet(archive, key, file);
   return denoiser;

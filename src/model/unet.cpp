@@ -295,7 +295,7 @@ UNet load_unet(torch::serialize::InputArchive& archive, const std::string& key,
     stored.bands = j.at("bands").get<int64_t>();
     options = unet_options_from_json(j, file.string(), stored);
   } catch (const nlohmann::json::exception& e) {
-    throw core::Error(file, "denoiser options are not valid JSON: " + std::string(e.what()));
+    throw core::Error(file, "denoiser options are not valid JSON: " + core::message_of(e));
   }
   UNet unet(options);
   try {

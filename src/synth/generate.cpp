@@ -87,6 +87,18 @@ void validate(const SynthConfig& c) {
   core::require(c.supersample >= 1 && c.supersample <= 8,
                 "synth: expected 1 <= --supersample <= 8");
   core::require(c.points >= 0, "synth: expected --points >= 0");
+  // A fill of 0 places the cameras infinitely far away: null camera matrices.
+  core::require(c.fill > 0 && c.fill <= 1, "synth: expected 0 < --fill <= 1");
+  core::require(c.rings >= 1, "synth: expected --rings >= 1");
+  core::require(c.min_elevation_deg > -90 && c.max_elevation_deg < 90 &&
+                    c.min_elevation_deg <= c.max_elevation_deg,
+                "synth: expected -90 < --elevation-min <= --elevation-max < 90 degrees");
+  core::require(c.point_jitter >= 0, "synth: expected --point-jitter >= 0");
+  // One view is rendered as float32 [H, W, B] at a time; more than this is a typo.
+  const double view_gib = double(c.width) * double(c.height) * double(c.bands) * 4.0 / (1 << 30);
+  core::require(c.width <= 16384 && c.height <= 16384 && view_gib <= 4.0,
+                "synth: --width x --height x --bands is " + std::to_string(view_gib) +
+                    " GiB per view as float32 (at most 16384 pixels a side and 4 GiB)");
 }
 
 // float [H, W, N] in [0, 1] -> uint16 samples held in int16 (see io::SampleType).

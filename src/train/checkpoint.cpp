@@ -44,7 +44,10 @@ void save_checkpoint(const fs::path& path, const TrainState& state) {
   }
   archive.write("modules", modules);
 
-  io::write_atomically(path, [&](const fs::path& tmp) { archive.save_to(tmp.string()); });
+  // Through a sink: LibTorch's own file writer ends the process when the disk is full.
+  io::write_stream_atomically(path, [&](io::FileSink& sink) {
+    archive.save_to([&](const void* data, size_t size) { return sink.write(data, size); });
+  });
 }
 
 void load_checkpoint(const fs::path& path, TrainState& state,

@@ -26,7 +26,7 @@ json parse_json_file(const fs::path& path) {
   try {
     return json::parse(text);
   } catch (const json::parse_error& e) {
-    throw core::Error(path, std::string("not valid JSON (") + e.what() + ")");
+    throw core::Error(path, "not valid JSON (" + core::message_of(e) + ")");
   }
 }
 
@@ -217,6 +217,7 @@ void validate_config(const json& config, const std::string& source) {
   check_version(config, source);
   if (config.contains("extends")) throw core::Error(source, "a resolved config has no 'extends'");
   check_object(schema(), config, "", source, true);
+  check_config_values(config, source);
 }
 
 void set_key(json& config, const std::string& key_path, const std::string& value,
@@ -226,6 +227,8 @@ void set_key(json& config, const std::string& key_path, const std::string& value
     parsed = json::parse(value);
   } catch (const json::parse_error&) {
     parsed = value;
+  } catch (const json::out_of_range&) {  // "1e999": a number no double holds
+    throw core::Error(source, "key '" + key_path + "' is " + value + ", too large a number");
   }
   const json* s = &schema();
   json* target = &config;
@@ -243,6 +246,7 @@ void set_key(json& config, const std::string& key_path, const std::string& value
   }
   if (s->is_object()) throw core::Error(source, "key '" + key_path + "' is a section, not a value");
   check_value(*s, parsed, key_path, source);
+  check_config_value(key_path, parsed, source);
   *target = parsed;
 }
 

@@ -48,6 +48,14 @@ std::vector<std::string> add_missing_keys(nlohmann::json& config);
 // Validates a resolved config (e.g. a run's config.json) read from `source`.
 void validate_config(const nlohmann::json& config, const std::string& source);
 
+// core::Error naming source and the key when a number is outside what the
+// key allows (train/config_values.cpp): iterations >= 1, sh_degree 0..3,
+// learning rates >= 0, divisors > 0, ... Part of validate_config.
+void check_config_values(const nlohmann::json& config, const std::string& source);
+// The same for one key (dotted path) about to be set to value.
+void check_config_value(const std::string& key, const nlohmann::json& value,
+                        const std::string& source);
+
 // Sets one key ("densify.grad_threshold") from text: JSON if it parses as
 // JSON, else a string. Throws core::Error naming `source` and the key when
 // the key is unknown or the value has the wrong type.

@@ -135,7 +135,10 @@ fs::path denoiser_path(const RunPaths& run) {
 void write_denoiser(const fs::path& path, model::Denoiser& denoiser) {
   torch::serialize::OutputArchive archive;
   model::save_denoiser(archive, kArchiveKey, denoiser);
-  io::write_atomically(path, [&](const fs::path& tmp) { archive.save_to(tmp.string()); });
+  // Through a sink: LibTorch's own file writer ends the process when the disk is full.
+  io::write_stream_atomically(path, [&](io::FileSink& sink) {
+    archive.save_to([&](const void* data, size_t size) { return sink.write(data, size); });
+  });
 }
 
 model::Denoiser read_denoiser(const fs::path& path) {

@@ -1,7 +1,10 @@
 #include "train/run_folder.h"
 
+#include <fcntl.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <sstream>
 
 #include "core/error.h"
@@ -118,13 +121,22 @@ MetricsLog::MetricsLog(const fs::path& path, int64_t keep_until) : path_(path) {
     }
   }
   io::write_file_atomically(path, kept);
-  out_.open(path, std::ios::app);
-  if (!out_) throw core::Error(path, "cannot open for writing");
+  fd_ = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+  if (fd_ < 0) throw core::Error(path, "cannot open for writing: " + io::system_error_text(errno));
+}
+
+MetricsLog::~MetricsLog() {
+  if (fd_ >= 0) ::close(fd_);
 }
 
 void MetricsLog::write(const nlohmann::json& record) {
-  out_ << record.dump() << "\n" << std::flush;
-  if (!out_) throw core::Error(path_, "write failed (disk full?)");
+  const std::string line = record.dump() + "\n";
+  ssize_t n;
+  do {
+    n = ::write(fd_, line.data(), line.size());
+  } while (n < 0 && errno == EINTR);
+  if (n < 0) throw core::Error(path_, "write failed: " + io::system_error_text(errno));
+  if (size_t(n) != line.size()) throw core::Error(path_, "write failed: no space left on device");
 }
 
 double peak_rss_mib() {

@@ -9,7 +9,6 @@
 
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <vector>
 
@@ -70,17 +69,21 @@ bool is_unstarted_run(const RunPaths& run);
 // Reads and validates RUN/config.json (format_version, keys, types).
 nlohmann::json read_run_config(const RunPaths& run);
 
-// Appends JSON lines, flushed per line so a crash loses at most one.
+// Appends JSON lines, each with one write(2) so a crash loses at most one and
+// a full disk is reported as such.
 class MetricsLog {
  public:
   // Keeps the existing lines whose "iter" <= keep_until (a resumed run
   // rewrites what it will log again); keep_until < 0 starts empty.
   MetricsLog(const std::filesystem::path& path, int64_t keep_until);
+  ~MetricsLog();
+  MetricsLog(const MetricsLog&) = delete;
+  MetricsLog& operator=(const MetricsLog&) = delete;
   void write(const nlohmann::json& record);
 
  private:
   std::filesystem::path path_;
-  std::ofstream out_;
+  int fd_ = -1;
 };
 
 // Peak resident set size of this process, MiB.

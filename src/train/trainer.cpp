@@ -17,6 +17,7 @@
 #include "train/background.h"
 #include "train/config.h"
 #include "train/init.h"
+#include "train/run_checks.h"
 
 namespace ddhgs::train {
 
@@ -113,9 +114,11 @@ Trainer::Trainer(json config, RunPaths run)
 
 void Trainer::load_scene() {
   fs::path data = config_.at("data").at("path").get<std::string>();
+  core::require(!data.empty(), run_.config(), "data.path is empty: no dataset to train on");
   scene_ = io::load_scene(data, load_options(config_));
   io::log_scene_messages(*scene_);
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
+  check_scene_before_training(*scene_);
   background_ = background(config_, scene_->bands());
   if (config_.at("model").at("background_from_views").get<bool>()) {
     background_ = border_colour(*scene_, scene_->train);
@@ -436,6 +439,7 @@ void Trainer::finetune_step(int64_t iteration, json& record) {
 }
 
 void Trainer::save(bool numbered) {
+  require_finite_parameters(state_, run_.root);
   save_checkpoint(run_.checkpoint(), state_);
   if (numbered) {
     io::write_atomically(run_.checkpoint_at(state_.iteration), [&](const fs::path& tmp) {
@@ -446,7 +450,7 @@ void Trainer::save(bool numbered) {
 
 json Trainer::test_psnr() {
   // A quick held-out check, measured as `ddhgs eval` measures (eval::measure_view).
-  json out;
+  json out = json::object();  // summary.update() needs an object, even empty
   if (scene_->test.empty()) return out;
   torch::NoGradGuard no_grad;
   const torch::Tensor offsets = band_offsets();
@@ -561,6 +565,7 @@ TrainStatus Trainer::run_steps() {
       finetune_step(iteration, record);
     else
       step(iteration, record);
+    require_finite_record(record, run_.root);
     state_.iteration = iteration;
     // The Gaussians' share of the time, for seconds per iteration.
     if (iteration == iterations) state_.meta["gaussian_seconds"] = elapsed();

@@ -104,3 +104,31 @@ TEST(AtomicFile, ReadFileErrors) {
 
 }  // namespace
 }  // namespace ddhgs::io
+
+namespace ddhgs::io {
+namespace {
+
+// /dev/full answers every write with ENOSPC, as a full disk does: the sink
+// keeps the failure (it may sit under a C callback that must not throw) and
+// finish() reports it naming the target.
+TEST(FileSink, FullDiskIsReportedByFinishNamingTheTarget) {
+  if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  FileSink sink("/dev/full", "run/checkpoint.pt");
+  const std::string bytes(4096, 'x');
+  EXPECT_EQ(sink.write(bytes.data(), bytes.size()), bytes.size());
+  EXPECT_EQ(sink.write(bytes.data(), bytes.size()), bytes.size());
+  test::expect_error_naming([&] { sink.finish(); }, "run/checkpoint.pt",
+                            "write failed: no space left on device");
+}
+
+TEST(FileSink, StreamedWriteReplacesTheFileWhole) {
+  const std::filesystem::path dir = test::temp_dir("sink_stream");
+  write_stream_atomically(dir / "a.bin", [](FileSink& sink) {
+    for (char c : std::string("abc")) sink.write(&c, 1);
+  });
+  EXPECT_EQ(read_file(dir / "a.bin"), "abc");
+  EXPECT_EQ(files_in(dir), 1u);
+}
+
+}  // namespace
+}  // namespace ddhgs::io

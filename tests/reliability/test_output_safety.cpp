@@ -4,47 +4,20 @@
 // folder is a temporary stand-in given through $HOME.
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <fstream>
 
-#include "io/files/atomic_file.h"
-#include "support/test_support.h"
+#include "cli_support.h"
 
 namespace ddhgs {
 namespace {
 namespace fs = std::filesystem;
 
-int ddhgs(const std::string& args, std::string* out) {
-  return test::run_command(test::ddhgs_binary() + " " + args, out);
-}
-
-// Every file below dir with its contents, to show that nothing changed.
-std::vector<std::pair<std::string, std::string>> snapshot(const fs::path& dir) {
-  std::vector<std::pair<std::string, std::string>> files;
-  for (const auto& entry : fs::recursive_directory_iterator(dir))
-    if (entry.is_regular_file())
-      files.emplace_back(fs::relative(entry.path(), dir).string(), io::read_file(entry.path()));
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
-size_t lines(const std::string& text) {
-  return size_t(std::count(text.begin(), text.end(), '\n'));
-}
-
-const std::string kTinyScene = " synth --preset demo --width 32 --height 24 --bands 4 --views 12";
-const std::string kQuickTrain = " --preset demo --iterations 20 --checkpoint-every 0";
-
-// A small scene, written once per test process.
-const fs::path& scene() {
-  static const fs::path dir = [] {
-    fs::path d = test::temp_dir("safety_scene") / "scene";
-    std::string out;
-    EXPECT_EQ(ddhgs("-q" + kTinyScene + " --out " + d.string(), &out), 0) << out;
-    return d;
-  }();
-  return dir;
-}
+using test::ddhgs;
+using test::kQuickTrain;
+using test::kTinyScene;
+using test::lines;
+using test::snapshot;
+using test::tiny_scene;
 
 TEST(OutputSafety, ForceNeverReplacesAFolderDdhgsDidNotWrite) {
   const fs::path dir = test::temp_dir("safety_foreign");
@@ -56,7 +29,7 @@ TEST(OutputSafety, ForceNeverReplacesAFolderDdhgsDidNotWrite) {
   std::string out;
   for (const std::string& command :
        {"-q synth --preset demo --force --out " + mine.string(),
-        "-q train " + scene().string() + " --force --out " + mine.string() + kQuickTrain}) {
+        "-q train " + tiny_scene().string() + " --force --out " + mine.string() + kQuickTrain}) {
     EXPECT_EQ(ddhgs(command, &out), 1) << command << "\n" << out;
     EXPECT_NE(out.find("did not write"), std::string::npos) << out;
     EXPECT_EQ(lines(out), 1u) << out;
@@ -114,9 +87,9 @@ TEST(OutputSafety, ASecondWriterOfARunFolderIsRefused) {
   std::string out;
   // The first train holds the run folder; the second, started while it
   // runs, must neither replace it nor mix its config into it.
-  const std::string first = test::ddhgs_binary() + " -q train " + scene().string() + " --out " +
-                            run.string() + " --preset demo --iterations 150 --seed 1";
-  const std::string second = test::ddhgs_binary() + " train " + scene().string() + " --out " +
+  const std::string first = test::ddhgs_binary() + " -q train " + tiny_scene().string() +
+                            " --out " + run.string() + " --preset demo --iterations 150 --seed 1";
+  const std::string second = test::ddhgs_binary() + " train " + tiny_scene().string() + " --out " +
                              run.string() + " --force --preset demo --iterations 20 --seed 2";
   const int rc = test::run_command(
       "(" + first + " > " + (dir / "first.log").string() + " 2>&1; echo $? > " +
@@ -138,8 +111,8 @@ TEST(OutputSafety, SigtermSavesACheckpointLikeCtrlC) {
   const fs::path dir = test::temp_dir("safety_sigterm");
   const fs::path run = dir / "run";
   std::string out;
-  const std::string train = test::ddhgs_binary() + " -q train " + scene().string() + " --out " +
-                            run.string() + " --preset demo --iterations 100000";
+  const std::string train = test::ddhgs_binary() + " -q train " + tiny_scene().string() +
+                            " --out " + run.string() + " --preset demo --iterations 100000";
   // Wait for some logged iterations, then stop it as a batch scheduler would.
   const int rc = test::run_command(
       train + " & pid=$!; for i in $(seq 1200); do [ $(wc -l < " +

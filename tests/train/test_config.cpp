@@ -105,7 +105,8 @@ TEST(Config, LoadOptionsMirrorTheDataSection) {
   EXPECT_EQ(o.downscale, 4);
   EXPECT_DOUBLE_EQ(o.band_min_nm, 450);
   EXPECT_EQ(o.bin, 2);
-  train::apply_assignment(c, "data.downscale=0");
+  EXPECT_THROW(train::apply_assignment(c, "data.downscale=0"), core::Error);
+  c["data"]["downscale"] = 0;  // a config that skipped validation
   EXPECT_THROW(train::load_options(c), core::Error);
 }
 
@@ -160,5 +161,36 @@ TEST(Config, OlderRunConfigsTakeDefaultsForKeysAddedLater) {
   c["iterations"] = "many";
   std::ofstream(dir / "config.json") << c.dump(2);
   EXPECT_NE(error_of([&] { train::read_run_config({dir}); }).find("'iterations' must be"),
+            std::string::npos);
+}
+
+// Issue 18: values a run cannot use end the command before any work, naming
+// the key (each of these was accepted and failed only after training, or
+// trained on NaN).
+TEST(Config, ValuesOutsideTheirRangeNameTheKey) {
+  auto c = train::load_preset("demo");
+  EXPECT_NE(error_of([&] {
+              train::apply_assignment(c, "optim.sh_rest_lr_divisor=0");
+            }).find("--set: key 'optim.sh_rest_lr_divisor' is 0, expected a number > 0"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              train::apply_assignment(c, "model.sh_degree=4");
+            }).find("key 'model.sh_degree' is 4, expected an integer >= 0 and <= 3"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              train::set_key(c, "iterations", "-5", "--iterations");
+            }).find("--iterations: key 'iterations' is -5, expected an integer >= 1"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { train::apply_assignment(c, "optim.sh_dc_lr=1e999"); }).find("sh_dc_lr"),
+            std::string::npos);
+  // In range: accepted, and every preset passes.
+  train::apply_assignment(c, "model.sh_degree=0");
+  train::apply_assignment(c, "optim.sh_rest_lr_divisor=0.5");
+  for (const char* preset : {"default", "demo", "paper"})
+    train::check_config_values(train::load_preset(preset), preset);
+  c["densify"]["min_opacity"] = 1.5;  // a run folder's config.json edited by hand
+  EXPECT_NE(error_of([&] {
+              train::validate_config(c, "RUN/config.json");
+            }).find("RUN/config.json: key 'densify.min_opacity' is 1.5"),
             std::string::npos);
 }

@@ -166,16 +166,24 @@ ColmapCamera colmap_camera_of(const core::Intrinsics& k) {
 }
 
 core::Camera colmap_camera(const ColmapModel& model, const ColmapImage& image) {
+  auto in = [](const fs::path& file) {
+    return file.empty() ? std::string() : file.string() + ": ";
+  };
   auto it = model.cameras.find(image.camera_id);
   if (it == model.cameras.end())
-    throw core::Error("COLMAP image " + image.name + ": camera " + std::to_string(image.camera_id) +
-                      " is not in cameras");
+    throw core::Error(in(model.images_file) + "COLMAP image " + image.name + ": camera " +
+                      std::to_string(image.camera_id) + " is not in cameras");
   const auto& q = image.qvec;
   double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
   if (!(norm > 1e-12) || !std::isfinite(norm))
-    throw core::Error("COLMAP image " + image.name + ": quaternion is zero or not finite");
+    throw core::Error(in(model.images_file) + "COLMAP image " + image.name +
+                      ": quaternion is zero or not finite");
   core::Camera camera;
-  camera.intrinsics = colmap_intrinsics(it->second);
+  try {
+    camera.intrinsics = colmap_intrinsics(it->second);
+  } catch (const core::Error& e) {
+    throw core::Error(in(model.cameras_file) + e.what());
+  }
   camera.world_to_camera =
       core::Mat4::from(core::quat_to_rotation(q[0], q[1], q[2], q[3]), image.tvec);
   return camera;

@@ -14,6 +14,9 @@
 
 namespace ddhgs::io {
 
+// Larger than any camera's width or height in pixels; readers refuse more.
+constexpr int64_t kColmapMaxPixels = 1 << 20;
+
 struct ColmapCamera {
   int camera_id = 0;
   // COLMAP model name: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV,
@@ -46,6 +49,9 @@ struct ColmapModel {
   std::map<int, ColmapCamera> cameras;  // by camera_id
   std::vector<ColmapImage> images;      // in file order
   std::vector<ColmapPoint> points;
+  // The files the model was read from, named in errors; empty when it was
+  // built in memory.
+  std::filesystem::path cameras_file, images_file;
 };
 
 // The model folder below root: sparse/0, colmap/sparse/0 or sparse, the first

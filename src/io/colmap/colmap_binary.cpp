@@ -1,5 +1,6 @@
 // COLMAP's binary model format: little-endian, counts as uint64, image names
 // NUL-terminated (src/colmap/scene/reconstruction_io.cc describes the layout).
+#include <cmath>
 #include <cstring>
 #include <type_traits>
 
@@ -36,6 +37,22 @@ class Cursor {
     std::string name = bytes_.substr(pos_, end - pos_);
     pos_ = end + 1;
     return name;
+  }
+
+  // A double that must be a finite number (NaN poses or points poison training).
+  double read_finite(const char* what) {
+    double value = read<double>(what);
+    if (!std::isfinite(value)) fail(std::string(what) + " is not a finite number");
+    return value;
+  }
+
+  // Image sizes: COLMAP stores uint64, ddhgs works with int pixel counts.
+  int64_t read_pixels(const char* what) {
+    uint64_t value = read<uint64_t>(what);
+    if (value < 1 || value > uint64_t(kColmapMaxPixels))
+      fail(std::string(what) + " " + std::to_string(value) + " is not between 1 and " +
+           std::to_string(kColmapMaxPixels));
+    return int64_t(value);
   }
 
   // A count of items each at least min_bytes long must fit in what is left.
@@ -87,10 +104,10 @@ void read_cameras(const fs::path& path, ColmapModel& model) {
     ColmapCamera camera;
     camera.camera_id = in.read<int32_t>("camera id");
     camera.model = colmap_model_name(in.read<int32_t>("camera model"), path.string());
-    camera.width = int64_t(in.read<uint64_t>("camera width"));
-    camera.height = int64_t(in.read<uint64_t>("camera height"));
+    camera.width = in.read_pixels("camera width");
+    camera.height = in.read_pixels("camera height");
     size_t count = colmap_param_count(camera.model, path.string());
-    for (size_t j = 0; j < count; ++j) camera.params.push_back(in.read<double>("camera parameter"));
+    for (size_t j = 0; j < count; ++j) camera.params.push_back(in.read_finite("camera parameter"));
     if (!model.cameras.emplace(camera.camera_id, camera).second)
       in.fail("camera id " + std::to_string(camera.camera_id) + " appears twice");
   }
@@ -103,10 +120,10 @@ void read_images(const fs::path& path, ColmapModel& model) {
   for (uint64_t i = 0; i < n; ++i) {
     ColmapImage image;
     image.image_id = in.read<int32_t>("image id");
-    for (double& q : image.qvec) q = in.read<double>("quaternion");
-    image.tvec.x = in.read<double>("translation");
-    image.tvec.y = in.read<double>("translation");
-    image.tvec.z = in.read<double>("translation");
+    for (double& q : image.qvec) q = in.read_finite("quaternion");
+    image.tvec.x = in.read_finite("translation");
+    image.tvec.y = in.read_finite("translation");
+    image.tvec.z = in.read_finite("translation");
     image.camera_id = in.read<int32_t>("camera id");
     image.name = in.read_name();
     uint64_t points = in.read_count("keypoint count", 24);
@@ -130,9 +147,9 @@ void read_points(const fs::path& path, ColmapModel& model) {
   for (uint64_t i = 0; i < n; ++i) {
     ColmapPoint point;
     point.point3d_id = int64_t(in.read<uint64_t>("point id"));
-    point.xyz.x = in.read<double>("point x");
-    point.xyz.y = in.read<double>("point y");
-    point.xyz.z = in.read<double>("point z");
+    point.xyz.x = in.read_finite("point x");
+    point.xyz.y = in.read_finite("point y");
+    point.xyz.z = in.read_finite("point z");
     for (uint8_t& c : point.rgb) c = in.read<uint8_t>("point colour");
     point.error = in.read<double>("point error");
     uint64_t track = in.read_count("track length", 8);
@@ -153,6 +170,8 @@ ColmapModel read_colmap_binary(const fs::path& dir) {
   read_cameras(dir / "cameras.bin", model);
   read_images(dir / "images.bin", model);
   if (fs::exists(dir / "points3D.bin")) read_points(dir / "points3D.bin", model);
+  model.cameras_file = dir / "cameras.bin";
+  model.images_file = dir / "images.bin";
   return model;
 }
 

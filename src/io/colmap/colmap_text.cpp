@@ -74,6 +74,10 @@ void read_cameras(const fs::path& path, ColmapModel& model) {
     camera.model = f.next<std::string>("camera model");
     camera.width = f.next<int64_t>("width");
     camera.height = f.next<int64_t>("height");
+    for (int64_t pixels : {camera.width, camera.height})
+      if (pixels < 1 || pixels > kColmapMaxPixels)
+        f.fail("image size " + std::to_string(pixels) + " is not between 1 and " +
+               std::to_string(kColmapMaxPixels) + " pixels");
     size_t count =
         colmap_param_count(camera.model, path.string() + ": line " + std::to_string(line.number));
     for (size_t j = 0; j < count; ++j) camera.params.push_back(f.next<double>("camera parameter"));
@@ -154,6 +158,8 @@ ColmapModel read_colmap_text(const fs::path& dir) {
   read_cameras(dir / "cameras.txt", model);
   read_images(dir / "images.txt", model);
   if (fs::exists(dir / "points3D.txt")) read_points(dir / "points3D.txt", model);
+  model.cameras_file = dir / "cameras.txt";
+  model.images_file = dir / "images.txt";
   return model;
 }
 

@@ -9,6 +9,7 @@
 #include "core/log.h"
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
+#include "io/files/byte_count.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
@@ -174,7 +175,13 @@ std::vector<double> parse_wavelengths(const std::map<std::string, std::string>& 
                    "' are not a length; wavelengths ignored");
     return {};
   }
-  for (double& v : values) v *= scale;
+  for (double& v : values) {
+    // Bands outside the selected range are dropped: a wavelength <= 0 would
+    // vanish without a word.
+    if (!(v > 0))
+      throw core::Error(hdr, "'wavelength' holds " + std::to_string(v) + ", expected values > 0");
+    v *= scale;
+  }
   return values;
 }
 
@@ -246,17 +253,17 @@ EnviHeader read_header(const fs::path& path) {
 }
 
 uint64_t checked_data_bytes(const EnviHeader& h) {
-  uint64_t bytes =
-      uint64_t(h.samples) * uint64_t(h.lines) * uint64_t(h.bands) * bytes_per_sample(h.type);
   std::error_code ec;
   uint64_t size = fs::file_size(h.data, ec);
   if (ec) throw core::Error(h.data, "cannot read the file size");
   if (size == 0) throw core::Error(h.data, "empty data file");
-  if (size < h.offset + bytes)
-    throw core::Error(h.data, "truncated: the header " + h.hdr.filename().string() + " describes " +
-                                  std::to_string(h.offset + bytes) + " bytes, the file holds " +
-                                  std::to_string(size));
-  return bytes;
+  if (size < h.offset)
+    throw core::Error(h.data, "truncated: the header " + h.hdr.filename().string() +
+                                  " puts the samples at byte " + std::to_string(h.offset) +
+                                  ", the file holds " + std::to_string(size));
+  return require_present(h.data, "the header " + h.hdr.filename().string(),
+                         {uint64_t(h.lines), uint64_t(h.samples), uint64_t(h.bands)},
+                         bytes_per_sample(h.type), size - h.offset);
 }
 
 }  // namespace

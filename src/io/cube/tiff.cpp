@@ -9,6 +9,7 @@
 #include "core/log.h"
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
+#include "io/files/byte_count.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
@@ -66,6 +67,7 @@ class TiffFile {
 struct PageFormat {
   uint32_t width = 0, height = 0;
   uint16_t samples = 1, bits = 8, sample_format = SAMPLEFORMAT_UINT, planar = PLANARCONFIG_CONTIG;
+  uint16_t compression = COMPRESSION_NONE;
   bool same_as(const PageFormat& o) const {
     return width == o.width && height == o.height && samples == o.samples && bits == o.bits &&
            sample_format == o.sample_format;
@@ -80,6 +82,7 @@ PageFormat page_format(TIFF* tif) {
   TIFFGetFieldDefaulted(tif, TIFFTAG_BITSPERSAMPLE, &f.bits);
   TIFFGetFieldDefaulted(tif, TIFFTAG_SAMPLEFORMAT, &f.sample_format);
   TIFFGetFieldDefaulted(tif, TIFFTAG_PLANARCONFIG, &f.planar);
+  TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &f.compression);
   return f;
 }
 
@@ -103,7 +106,24 @@ struct TiffLayoutInfo {
   SampleType type = SampleType::U8;
   int64_t bands = 0;
   bool page_per_band = false;
+  bool compressed = false;  // any page
 };
+
+// The cube the header declares must fit in the file: exactly when the
+// samples are stored raw, within a compression ratio otherwise.
+void require_declared_size_fits(const TiffLayoutInfo& info, const fs::path& path) {
+  std::error_code ec;
+  const uint64_t file_bytes = fs::file_size(path, ec);
+  const std::initializer_list<uint64_t> dims{info.first.height, info.first.width,
+                                             uint64_t(info.bands)};
+  if (info.compressed)
+    require_decodable(
+        path,
+        checked_product({checked_product(dims).value_or(UINT64_MAX), bytes_per_sample(info.type)}),
+        file_bytes);
+  else
+    require_present(path, "the TIFF header", dims, bytes_per_sample(info.type), file_bytes);
+}
 
 TiffLayoutInfo inspect(TiffFile& file, const fs::path& path) {
   TIFF* tif = file.get();
@@ -116,18 +136,22 @@ TiffLayoutInfo inspect(TiffFile& file, const fs::path& path) {
   file.require_no_error(path);
   info.page_per_band = pages > 1 && info.first.samples == 1;
   info.bands = info.page_per_band ? pages : info.first.samples;
+  info.compressed = info.first.compression != COMPRESSION_NONE;
   if (pages > 1 && !info.page_per_band)
     core::log_warn(path.string() + ": reads the first of " + std::to_string(pages) +
                    " multi-sample TIFF pages");
   for (int page = 1; info.page_per_band && page < pages; ++page) {
     if (!TIFFSetDirectory(tif, tdir_t(page)))
       file.fail(path, "cannot read TIFF page " + std::to_string(page + 1));
-    if (!page_format(tif).same_as(info.first))
+    const PageFormat format = page_format(tif);
+    if (!format.same_as(info.first))
       throw core::Error(path, "TIFF page " + std::to_string(page + 1) +
                                   " differs in size or sample format from page 1; expected one "
                                   "band per page");
+    info.compressed = info.compressed || format.compression != COMPRESSION_NONE;
   }
   TIFFSetDirectory(tif, 0);
+  require_declared_size_fits(info, path);
   return info;
 }
 
@@ -173,7 +197,11 @@ void read_page(TiffFile& file, const PageFormat& f, int64_t band, torch::Tensor&
     uint32_t tw = 0, th = 0;
     TIFFGetField(tif, TIFFTAG_TILEWIDTH, &tw);
     TIFFGetField(tif, TIFFTAG_TILELENGTH, &th);
+    if (tw == 0 || th == 0) file.fail(path, "TIFF tiles of zero size");
     std::vector<uint8_t> tile(size_t(TIFFTileSize(tif)));
+    // Subsampled (YCbCr) tiles are smaller than the pixels they decode to.
+    if (uint64_t(tile.size()) < uint64_t(tw) * th * per_pixel * bytes)
+      file.fail(path, "unsupported TIFF tile layout (subsampled samples?)");
     for (int plane = 0; plane < planes; ++plane)
       for (uint32_t y = 0; y < f.height; y += th)
         for (uint32_t x = 0; x < f.width; x += tw) {
@@ -187,6 +215,8 @@ void read_page(TiffFile& file, const PageFormat& f, int64_t band, torch::Tensor&
     return;
   }
   std::vector<uint8_t> line(size_t(TIFFScanlineSize(tif)));
+  if (uint64_t(line.size()) < uint64_t(width) * per_pixel * bytes)
+    file.fail(path, "unsupported TIFF row layout (subsampled samples?)");
   for (int plane = 0; plane < planes; ++plane)
     for (uint32_t row = 0; row < f.height; ++row) {
       if (TIFFReadScanline(tif, line.data(), row, uint16_t(plane)) < 0)

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -26,39 +27,13 @@ fs::path temporary_sibling(const fs::path& path) {
   return path.parent_path() / name;
 }
 
-std::string errno_text() {
-  return std::strerror(errno);
-}
-
-// Plain POSIX calls: their return codes report a full disk (ENOSPC at write or
-// at fsync), which buffered streams would hide until destruction.
-void write_parts(const fs::path& tmp, const fs::path& target,
-                 std::initializer_list<std::string_view> parts) {
-  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw core::Error(target, "cannot create a file in its folder: " + errno_text());
-  auto fail = [&](const std::string& what) {
-    std::string reason = errno_text();
-    ::close(fd);
-    throw core::Error(target, what + ": " + reason);
-  };
-  for (std::string_view part : parts) {
-    const char* p = part.data();
-    size_t left = part.size();
-    while (left > 0) {
-      ssize_t n = ::write(fd, p, left);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) fail("write failed");
-      p += n;
-      left -= size_t(n);
-    }
-  }
-  // Durable before the rename makes it visible: a crash must leave either the
-  // old file or the complete new one.
-  if (::fsync(fd) != 0) fail("write failed");
-  if (::close(fd) != 0) throw core::Error(target, "write failed: " + errno_text());
-}
-
 }  // namespace
+
+std::string system_error_text(int error) {
+  std::string text = std::strerror(error);
+  if (!text.empty()) text[0] = char(std::tolower(static_cast<unsigned char>(text[0])));
+  return text;
+}
 
 void write_atomically(const fs::path& path, const std::function<void(const fs::path& tmp)>& write) {
   if (path.empty() || path.filename().empty()) throw core::Error(path, "not a file name to write");
@@ -90,7 +65,7 @@ void write_atomically(const fs::path& path, const std::function<void(const fs::p
     throw core::Error(path, std::string("write failed: ") + e.what());
   } catch (const fs::filesystem_error& e) {
     remove_tmp();
-    throw core::Error(path, std::string("write failed: ") + e.code().message());
+    throw core::Error(path, "write failed: " + system_error_text(e.code().value()));
   } catch (...) {
     remove_tmp();
     throw;
@@ -103,8 +78,54 @@ void write_atomically(const fs::path& path, const std::function<void(const fs::p
   }
 }
 
+FileSink::FileSink(const fs::path& tmp, const fs::path& target) : target_(target) {
+  fd_ = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) fail("cannot create a file in its folder", errno);
+}
+
+FileSink::~FileSink() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+size_t FileSink::write(const void* data, size_t size) noexcept {
+  const char* p = static_cast<const char*>(data);
+  size_t left = size;
+  while (left > 0 && error_ == 0) {
+    ssize_t n = ::write(fd_, p, left);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) error_ = errno;
+    if (n == 0) error_ = ENOSPC;  // no progress: what a full disk does to regular files
+    if (n > 0) p += n, left -= size_t(n);
+  }
+  return size;
+}
+
+void FileSink::finish() {
+  if (error_ != 0) fail("write failed", error_);
+  // Durable before the rename makes it visible: a crash must leave either the
+  // old file or the complete new one.
+  if (::fsync(fd_) != 0) fail("write failed", errno);
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0) fail("write failed", errno);
+}
+
+void FileSink::fail(const std::string& what, int error) {
+  throw core::Error(target_, what + ": " + system_error_text(error));
+}
+
+void write_stream_atomically(const fs::path& path, const std::function<void(FileSink&)>& write) {
+  write_atomically(path, [&](const fs::path& tmp) {
+    FileSink sink(tmp, path);
+    write(sink);
+    sink.finish();
+  });
+}
+
 void write_parts_atomically(const fs::path& path, std::initializer_list<std::string_view> parts) {
-  write_atomically(path, [&](const fs::path& tmp) { write_parts(tmp, path, parts); });
+  write_stream_atomically(path, [&](FileSink& sink) {
+    for (std::string_view part : parts) sink.write(part.data(), part.size());
+  });
 }
 
 void write_file_atomically(const fs::path& path, const std::string& bytes) {

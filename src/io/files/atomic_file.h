@@ -17,6 +17,35 @@ namespace ddhgs::io {
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write);
 
+// A temporary file written with plain POSIX calls, so that a full disk
+// (ENOSPC at write or at fsync) is reported instead of being lost in a
+// buffered stream's destructor. write() never throws: it can sit below a C
+// callback (LibTorch's zip writer, which throws from its own destructor when
+// a write comes up short and so ends the process). The first failure is kept
+// and finish() throws it as core::Error naming the target.
+class FileSink {
+ public:
+  FileSink(const std::filesystem::path& tmp, const std::filesystem::path& target);
+  ~FileSink();
+  FileSink(const FileSink&) = delete;
+  FileSink& operator=(const FileSink&) = delete;
+
+  // Always returns size; after a failure further bytes are dropped.
+  size_t write(const void* data, size_t size) noexcept;
+  // fsync and close; core::Error naming the target on any failure so far.
+  void finish();
+
+ private:
+  [[noreturn]] void fail(const std::string& what, int error);
+  std::filesystem::path target_;
+  int fd_ = -1;
+  int error_ = 0;  // errno of the first failed write
+};
+
+// write_atomically for writers that produce a byte stream.
+void write_stream_atomically(const std::filesystem::path& path,
+                             const std::function<void(FileSink& sink)>& write);
+
 // Convenience: atomically write a whole text or binary buffer.
 void write_file_atomically(const std::filesystem::path& path, const std::string& bytes);
 
@@ -24,6 +53,9 @@ void write_file_atomically(const std::filesystem::path& path, const std::string&
 // tensor memory) without first joining them in memory.
 void write_parts_atomically(const std::filesystem::path& path,
                             std::initializer_list<std::string_view> parts);
+
+// strerror(error) as the middle of a sentence: "no space left on device".
+std::string system_error_text(int error);
 
 // Reads a whole file; core::Error naming it if missing or unreadable.
 std::string read_file(const std::filesystem::path& path);

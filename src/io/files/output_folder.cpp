@@ -295,11 +295,15 @@ void FolderReplacement::begin(const PathContext& context) {
                                      " aside (" + ec.message() + ")");
     replacing_ = true;
   }
+  bool created = false;
   try {
-    fs::create_directories(folder_);
+    created = fs::create_directories(folder_);
     write_marker(folder_, request_.kind, replacing_);
   } catch (const std::exception& e) {
     const std::string why = e.what();
+    // Made here, but its marker did not fit (a full disk): still empty, so
+    // remove(), which never deletes contents, takes it away.
+    if (created) fs::remove(folder_, ec);
     rollback();
     throw core::Error(folder_, "cannot create the folder (" + why + ")");
   }

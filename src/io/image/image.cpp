@@ -5,6 +5,7 @@
 #include "core/error.h"
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
+#include "io/files/byte_count.h"
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmissing-field-initializers"
@@ -44,6 +45,11 @@ void append_bytes(void* context, void* data, int size) {
 torch::Tensor read_image(const fs::path& path) {
   std::string bytes = load_bytes(path);
   int width = 0, height = 0, channels = 0;
+  // The header's size decides the allocation: it must be one the data can fill.
+  if (stbi_info_from_memory(as_stbi(bytes), int(bytes.size()), &width, &height, &channels))
+    require_decodable(path,
+                      checked_product({uint64_t(width), uint64_t(height), uint64_t(channels)}),
+                      bytes.size());
   stbi_uc* pixels =
       stbi_load_from_memory(as_stbi(bytes), int(bytes.size()), &width, &height, &channels, 0);
   if (!pixels)

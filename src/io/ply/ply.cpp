@@ -69,10 +69,12 @@ std::vector<int> numbered_properties(const fs::path& path, const Element& vertex
 // Columns filling `count` consecutive floats per entry of a [entries, count] tensor.
 void add_columns(std::vector<Column>& columns, const std::vector<int>& properties,
                  torch::Tensor& target) {
-  float* base = target.data_ptr<float>();
+  // No entries: no storage, and no offset may be applied to its null pointer
+  // (undefined behaviour, found by UBSan); nothing is written through it.
+  float* base = target.numel() > 0 ? target.data_ptr<float>() : nullptr;
   const int64_t stride = target.numel() / std::max<int64_t>(target.size(0), 1);
   for (size_t i = 0; i < properties.size(); ++i)
-    columns.push_back({properties[i], base + i, nullptr, stride});
+    columns.push_back({properties[i], base ? base + i : nullptr, nullptr, stride});
 }
 
 std::vector<double> parse_wavelengths(const fs::path& path, const ply::Header& header) {
@@ -124,9 +126,8 @@ void write_rows(const fs::path& path, const std::string& header, int64_t entries
                 const std::vector<Block>& blocks) {
   int64_t record = 0;
   for (const auto& block : blocks) record += block.data.size(1) * block.data.element_size();
-  write_atomically(path, [&](const fs::path& tmp) {
-    std::ofstream out(tmp, std::ios::binary);
-    out.write(header.data(), std::streamsize(header.size()));
+  write_stream_atomically(path, [&](FileSink& out) {
+    out.write(header.data(), header.size());
     const int64_t chunk = std::max<int64_t>(1, (int64_t(1) << 22) / std::max<int64_t>(record, 1));
     std::vector<char> buffer(size_t(std::min(chunk, entries) * record));
     for (int64_t first = 0; first < entries; first += chunk) {
@@ -139,10 +140,8 @@ void write_rows(const fs::path& path, const std::string& header, int64_t entries
                       size_t(bytes));
           p += bytes;
         }
-      out.write(buffer.data(), std::streamsize(n * record));
+      out.write(buffer.data(), size_t(n * record));
     }
-    out.flush();
-    if (!out) throw core::Error(path, "write failed (disk full?)");
   });
 }
 

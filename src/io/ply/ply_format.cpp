@@ -263,7 +263,9 @@ Header read_header(std::istream& in, const fs::path& path) {
         std::string count_type;
         words >> count_type >> type;
         property.is_list = true;
-        if (!parse_type(count_type, &property.count_type)) throw bad("unknown type");
+        if (!parse_type(count_type, &property.count_type) || property.count_type == Type::Float32 ||
+            property.count_type == Type::Float64)
+          throw bad("list count type '" + count_type + "' is not an integer type");
       }
       if (!parse_type(type, &property.type)) throw bad("unknown type '" + type + "'");
       if (!(words >> property.name)) throw bad("property without a name");

@@ -76,7 +76,7 @@ core::Camera read_camera_json(const fs::path& path) {
   try {
     root = json::parse(text);
   } catch (const json::exception& e) {
-    throw core::Error(path, std::string("not valid JSON: ") + e.what());
+    throw core::Error(path, "not valid JSON: " + core::message_of(e));
   }
   if (!root.is_object()) throw core::Error(path, "expected a JSON object describing one camera");
   core::Camera camera;

@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <map>
 
 #include "core/error.h"
 #include "io/files/atomic_file.h"
@@ -32,6 +33,12 @@ class Reader {
     if (!value.is_number()) fail(where, "expected a number, found " + type_name(value));
     double v = value.get<double>();
     if (!std::isfinite(v)) fail(where, "expected a finite number");
+    return v;
+  }
+
+  double positive(const json& value, const std::string& where, const std::string& what) const {
+    double v = number(value, where);
+    if (v <= 0) fail(where, "expected " + what + " > 0, found " + value.dump());
     return v;
   }
 
@@ -76,7 +83,10 @@ class Reader {
     if (rows.size() == 4 &&
         (m(3, 0) != 0 || m(3, 1) != 0 || m(3, 2) != 0 || std::abs(m(3, 3) - 1) > 1e-9))
       fail(where + "[3]", "expected the last row to be [0, 0, 0, 1]");
-    if (std::abs(m.rotation().determinant()) < 1e-12) fail(where, "rotation block is singular");
+    const double det = m.rotation().determinant();
+    if (std::abs(det) < 1e-12) fail(where, "rotation block is singular");
+    // A mirror image of a camera: no real pose, and it flips every view.
+    if (det < 0) fail(where, "rotation block is a reflection (determinant < 0), not a rotation");
     return m;
   }
 
@@ -135,6 +145,22 @@ core::Intrinsics read_intrinsics(const Reader& in, const json& frame, const json
   return k;
 }
 
+// Two frames reading one file: a copy-paste slip that would weigh that view
+// twice (or give it two poses).
+void require_unique_files(const Reader& in, const std::vector<TransformsFrame>& frames) {
+  std::map<std::string, size_t> first;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const std::string& file = frames[i].hyperspectral_file_path.empty()
+                                  ? frames[i].file_path
+                                  : frames[i].hyperspectral_file_path;
+    auto [it, inserted] = first.emplace(fs::path(file).lexically_normal().generic_string(), i);
+    if (!inserted)
+      in.fail("frames[" + std::to_string(i) + "]", "reads " + file + " like frames[" +
+                                                       std::to_string(it->second) +
+                                                       "]; each view must appear once");
+  }
+}
+
 TransformsFile parse(const Reader& in, const json& root) {
   if (!root.is_object()) in.fail("top level", "expected a JSON object");
   TransformsFile file;
@@ -160,11 +186,13 @@ TransformsFile parse(const Reader& in, const json& root) {
     frame.intrinsics = read_intrinsics(in, f, root, where);
     file.frames.push_back(std::move(frame));
   }
+  require_unique_files(in, file.frames);
 
   if (const json* v = in.find(root, "wavelengths")) {
     const json& list = in.array(*v, "wavelengths");
     for (size_t i = 0; i < list.size(); ++i)
-      file.wavelengths_nm.push_back(in.number(list[i], "wavelengths[" + std::to_string(i) + "]"));
+      file.wavelengths_nm.push_back(
+          in.positive(list[i], "wavelengths[" + std::to_string(i) + "]", "a wavelength in nm"));
   }
   if (const json* v = in.find(root, "ply_file_path"))
     file.ply_file_path = in.string(*v, "ply_file_path");
@@ -215,14 +243,14 @@ TransformsFile read_transforms(const fs::path& path) {
   try {
     root = json::parse(text);
   } catch (const json::parse_error& e) {
-    // e.what() carries the byte offset, the useful part for a hand-edited file.
-    throw core::Error(path, std::string("not valid JSON: ") + e.what());
+    // The message carries the line and column, the useful part for a hand-edited file.
+    throw core::Error(path, "not valid JSON: " + core::message_of(e));
   }
   Reader in(path);
   try {
     return parse(in, root);
   } catch (const json::exception& e) {
-    throw core::Error(path, std::string("unexpected content: ") + e.what());
+    throw core::Error(path, "unexpected content: " + core::message_of(e));
   }
 }
 

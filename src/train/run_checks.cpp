@@ -1,0 +1,97 @@
+#include "train/run_checks.h"
+
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "io/scene/scene_report.h"
+
+namespace ddhgs::train {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string diverged(int64_t iteration, const std::string& what) {
+  return "training diverged at iteration " + std::to_string(iteration) + ": " + what +
+         " (learning rates too high?); nothing of this iteration was saved";
+}
+
+// Far beyond any reflectance or radiance in [0, 1]: a wrong scale or garbage
+// (a cube of 3e38 made every Gaussian NaN).
+constexpr double kMaxPlausibleValue = 1e3;
+
+bool is_float(const fs::path& path, const io::Scene& scene) {
+  const io::SampleType type = io::probe_cube(path, io::CubeReadOptions{scene.options.layout}).type;
+  return type == io::SampleType::F16 || type == io::SampleType::F32 || type == io::SampleType::F64;
+}
+
+void require_plausible(const torch::Tensor& image, const fs::path& path, double scale) {
+  const double top = image.abs().max().item<double>();
+  if (top > kMaxPlausibleValue) {
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "samples reach %.3g after dividing by the scale %g; ddhgs expects values "
+                  "near 0-1 (a wrong \"scale\" in transforms.json?)",
+                  top, scale);
+    throw core::Error(path, text);
+  }
+}
+
+bool finite(const torch::Tensor& t) {
+  return !t.defined() || torch::isfinite(t).all().item<bool>();
+}
+
+}  // namespace
+
+void check_scene_before_training(const io::Scene& scene) {
+  // Headers of every file: cheap, and the whole list of problems at once.
+  const io::SceneReport report = io::inspect_scene(scene, 0);
+  if (!report.errors.empty())
+    throw core::Error(report.errors.front() +
+                      (report.errors.size() > 1
+                           ? " (and " + std::to_string(report.errors.size() - 1) +
+                                 " more problems; ddhgs info lists them)"
+                           : ""));
+  // Samples no header describes: the held-out views (otherwise read only
+  // after the last iteration), and every float cube, which may hold NaN or
+  // absurd values (integer samples are bounded by the scale).
+  std::vector<bool> held_out(scene.views.size(), false);
+  for (int v : scene.test) held_out[size_t(v)] = true;
+  for (size_t v = 0; v < scene.views.size(); ++v) {
+    const io::View& view = scene.views[v];
+    if (held_out[v] || is_float(view.data_path, scene))
+      require_plausible(scene.image(int(v)), view.data_path, scene.scale);
+    if (!view.clean_path.empty() && (held_out[v] || is_float(view.clean_path, scene)))
+      require_plausible(scene.clean_image(int(v)), view.clean_path, scene.scale);
+  }
+  if (scene.test.empty())
+    core::log_warn(scene.root.string() +
+                   ": no held-out views (a scene needs 10 or more, or test_filenames); "
+                   "training without test metrics");
+}
+
+void require_finite_record(const nlohmann::json& record, const fs::path& run) {
+  for (const auto& [key, value] : record.items())
+    if (value.is_number_float() && !std::isfinite(value.get<double>()))
+      throw core::Error(run, diverged(record.value("iter", int64_t(0)),
+                                      "'" + key + "' is " + std::to_string(value.get<double>())));
+}
+
+void require_finite_parameters(const TrainState& state, const fs::path& run) {
+  const auto& names = model::Gaussians::tensor_names();
+  const auto values = state.gaussians.values();
+  for (size_t i = 0; i < values.size(); ++i)
+    if (!finite(values[i]))
+      throw core::Error(
+          run, diverged(state.iteration, "the Gaussians' " + names[i] + " hold NaN or Inf"));
+  for (const auto& m : state.modules)
+    for (const auto& p : m.module->named_parameters())
+      if (!finite(p.value()))
+        throw core::Error(run,
+                          diverged(state.iteration, m.name + "/" + p.key() + " holds NaN or Inf"));
+}
+
+}  // namespace ddhgs::train
