@@ -103,5 +103,26 @@ TEST(Image, MalformedImagesNameTheFile) {
                             "unknown cube format");
 }
 
+// A Huffman table listing more than 256 codes made stb_image write past an
+// array (the fuzzer's first find); it is refused, naming the file, by read
+// and by probe.
+TEST(Image, JpegHuffmanTableWithTooManyCodesIsRefused) {
+  fs::path dir = test::temp_dir("image_huffman");
+  std::string jpeg = "\xFF\xD8";                   // start of image
+  std::string table = std::string(1, '\x10');      // AC table 0
+  for (int i = 0; i < 16; ++i) table += char(20);  // 16 x 20 = 320 codes
+  table += std::string(320, '\x01');
+  const size_t length = table.size() + 2;
+  jpeg += "\xFF\xC4";
+  jpeg += char(length >> 8);
+  jpeg += char(length & 0xFF);
+  jpeg += table + "\xFF\xD9";
+  test::write_bytes(dir / "huffman.jpg", jpeg);
+  test::expect_error_naming([&] { read_image(dir / "huffman.jpg"); }, "huffman.jpg",
+                            "Huffman table lists 320 codes");
+  test::expect_error_naming([&] { probe_cube(dir / "huffman.jpg"); }, "huffman.jpg",
+                            "Huffman table lists 320 codes");
+}
+
 }  // namespace
 }  // namespace ddhgs::io
