@@ -93,10 +93,13 @@ void check_version(const json& config, const std::string& source) {
   if (!config.contains("format_version") || !config["format_version"].is_number_integer())
     throw core::Error(source, "missing integer key 'format_version'");
   int version = config["format_version"].get<int>();
-  if (version < kOldestConfigFormatVersion || version > kConfigFormatVersion)
+  // No converters: ddhgs has not been released, so a file of another version
+  // is refused rather than read with guessed values.
+  if (version != kConfigFormatVersion)
     throw core::Error(source, "written for config format_version " + std::to_string(version) +
                                   "; this ddhgs reads format_version " +
-                                  std::to_string(kConfigFormatVersion));
+                                  std::to_string(kConfigFormatVersion) +
+                                  " only (rewrite the file from configs/, or retrain)");
 }
 
 fs::path preset_path(const std::string& name_or_path, const fs::path& relative_to) {
@@ -115,17 +118,6 @@ const json& schema() {
   return s;
 }
 
-// Today's keys for a config of an older format_version; iterations: the run
-// length its iteration-number keys were written for.
-void upgrade(json& config, int64_t iterations, const std::string& source) {
-  if (config.at("format_version").get<int>() == kConfigFormatVersion) return;
-  if (upgrade_absolute_schedule(config, iterations))
-    core::log_info(source +
-                   ": schedule keys in iterations (format_version 1) read as fractions of " +
-                   std::to_string(iterations) + " iterations");
-  config["format_version"] = kConfigFormatVersion;
-}
-
 json load_chain(const fs::path& path, int depth) {
   if (depth > 16) throw core::Error(path, "'extends' chain is too long (a cycle?)");
   if (!fs::exists(path)) throw core::Error(path, "no such preset");
@@ -137,8 +129,6 @@ json load_chain(const fs::path& path, int depth) {
     if (!j["extends"].is_string()) throw core::Error(path, "'extends' must be a preset name");
     base = load_chain(preset_path(j["extends"].get<std::string>(), path.parent_path()), depth + 1);
   }
-  const json& length = j.contains("iterations") ? j["iterations"] : base["iterations"];
-  upgrade(j, length.is_number_integer() ? length.get<int64_t>() : 0, path.string());
   check_object(schema(), j, "", path.string(), false);
   j.erase("extends");
   base.merge_patch(j);
@@ -169,47 +159,6 @@ json load_preset(const std::string& name_or_path) {
   json config = load_chain(path, 0);
   validate_config(config, path.string());
   return config;
-}
-
-namespace {
-
-// Keys whose default is not what runs made before the key existed did: such
-// a run gets the value that reproduces it. (The denoiser predicted eps with an
-// unweighted loss before the residual parameterisation became the default,
-// had no fine-tuning phase, and its output was one sample, not a mean.)
-const json& legacy_values() {
-  static const json values = {
-      {"diffusion.prediction", "eps"},        {"diffusion.min_snr_gamma", 0.0},
-      {"diffusion.finetune_steps", 0},        {"diffusion.sampler_samples", 1},
-      {"model.background_from_views", false}, {"model.learn_background", false}};
-  return values;
-}
-
-void add_missing(const json& schema, json& config, const std::string& prefix,
-                 std::vector<std::string>& added) {
-  for (const auto& [key, value] : schema.items()) {
-    const std::string path = prefix.empty() ? key : prefix + "." + key;
-    if (!config.contains(key)) {
-      config[key] = legacy_values().value(path, value);
-      added.push_back(path);
-    } else if (value.is_object() && config[key].is_object()) {
-      add_missing(value, config[key], path, added);
-    }
-  }
-}
-
-}  // namespace
-
-void upgrade_run_config(json& config, const std::string& source) {
-  check_version(config, source);
-  const json& length = config.contains("iterations") ? config["iterations"] : json(0);
-  upgrade(config, length.is_number_integer() ? length.get<int64_t>() : 0, source);
-}
-
-std::vector<std::string> add_missing_keys(json& config) {
-  std::vector<std::string> added;
-  if (config.is_object()) add_missing(schema(), config, "", added);
-  return added;
 }
 
 void validate_config(const json& config, const std::string& source) {

@@ -16,10 +16,9 @@
 
 namespace ddhgs::train {
 
-// 2: schedule keys are fractions of `iterations` (train/schedule.h); files
-// of version 1 are read and converted.
+// 2: schedule keys are fractions of `iterations` (train/schedule.h). A file
+// of another version is refused with one line naming both versions.
 constexpr int kConfigFormatVersion = 2;
-constexpr int kOldestConfigFormatVersion = 1;
 
 // Folder holding default.json: $DDHGS_CONFIG_DIR, else the nearest configs/
 // above the running executable, else /usr/share/ddhgs/configs.
@@ -29,21 +28,6 @@ std::filesystem::path config_dir();
 // with its "extends" chain resolved and every key validated. The result has
 // every key of default.json and no "extends".
 nlohmann::json load_preset(const std::string& name_or_path);
-
-// Converts a complete config of an older format_version read from `source`
-// (a run's config.json) to today's keys, keeping what the run did.
-void upgrade_run_config(nlohmann::json& config, const std::string& source);
-
-// Adds the keys of default.json that `config` lacks, with their default
-// values: keys introduced after an older run was made. Every new component
-// defaults to off, and keys whose default changes what existing components do
-// get the value that reproduces the older run (diffusion.prediction "eps",
-// diffusion.min_snr_gamma 0, diffusion.finetune_steps 0,
-// diffusion.sampler_samples 1, model.background_from_views false,
-// model.learn_background false), so the
-// older run keeps its behaviour. Returns
-// the dotted names of the keys added.
-std::vector<std::string> add_missing_keys(nlohmann::json& config);
 
 // Validates a resolved config (e.g. a run's config.json) read from `source`.
 void validate_config(const nlohmann::json& config, const std::string& source);

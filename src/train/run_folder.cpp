@@ -98,14 +98,6 @@ nlohmann::json read_run_config(const RunPaths& run) {
   if (!fs::exists(run.config())) throw core::Error(run.config(), "missing: not a ddhgs run folder");
   nlohmann::json config = nlohmann::json::parse(io::read_file(run.config()), nullptr, false);
   if (config.is_discarded()) throw core::Error(run.config(), "not valid JSON");
-  if (config.is_object()) upgrade_run_config(config, run.config().string());
-  const auto added = add_missing_keys(config);
-  if (!added.empty()) {
-    std::string names;
-    for (const auto& key : added) names += (names.empty() ? "" : ", ") + key;
-    core::log_info(run.config().string() +
-                   ": made by an older ddhgs; new keys take their defaults (" + names + ")");
-  }
   validate_config(config, run.config().string());
   return config;
 }

@@ -9,20 +9,6 @@ using nlohmann::json;
 
 namespace {
 
-struct Renamed {
-  const char* section;
-  const char* absolute;  // format_version 1 key, in iterations
-  const char* fraction;  // today's key, a fraction of `iterations`
-};
-
-constexpr Renamed kRenamed[] = {
-    {"model", "sh_degree_every", "sh_degree_every_fraction"},
-    {"optim", "means_lr_max_steps", "means_lr_decay_fraction"},
-    {"densify", "from_iter", "from_fraction"},
-    {"densify", "until_iter", "until_fraction"},
-    {"densify", "opacity_reset_every", "opacity_reset_every_fraction"},
-};
-
 int64_t of_run(double fraction, int64_t iterations) {
   return std::llround(fraction * double(iterations));
 }
@@ -48,23 +34,6 @@ Schedule schedule_from_config(const json& config) {
   s.opacity_reset_every =
       interval(densify.at("opacity_reset_every_fraction").get<double>(), s.iterations);
   return s;
-}
-
-bool upgrade_absolute_schedule(json& config, int64_t iterations) {
-  if (!config.is_object()) return false;
-  const double n = double(iterations);
-  bool changed = false;
-  for (const Renamed& r : kRenamed) {
-    if (!config.contains(r.section) || !config[r.section].is_object()) continue;
-    json& section = config[r.section];
-    if (!section.contains(r.absolute)) continue;
-    const json value = section[r.absolute];
-    section.erase(r.absolute);
-    // A value that is not a number is left for validation to report.
-    section[r.fraction] = !value.is_number() ? value : json(n > 0 ? value.get<double>() / n : 0.0);
-    changed = true;
-  }
-  return changed;
 }
 
 }  // namespace ddhgs::train

@@ -28,12 +28,4 @@ struct Schedule {
 // least 1 for the intervals whose fraction is above zero.
 Schedule schedule_from_config(const nlohmann::json& config);
 
-// A config written before the schedule became fractions (format_version 1:
-// densify.from_iter, until_iter, opacity_reset_every, model.sh_degree_every,
-// optim.means_lr_max_steps in iterations) in today's keys, with the
-// fractions that give back the same iteration numbers in a run of
-// `iterations`. Other keys are left as they are; returns whether anything
-// was converted.
-bool upgrade_absolute_schedule(nlohmann::json& config, int64_t iterations);
-
 }  // namespace ddhgs::train

@@ -235,7 +235,8 @@ def run_cases(p):
     files = {
         "config_invalid": ("config.json", "{not json"),
         "config_array": ("config.json", "[]"),
-        "config_missing_key": ("config.json", json.dumps({"format_version": 1})),
+        "config_old_version": ("config.json", json.dumps({"format_version": 1})),
+        "config_missing_key": ("config.json", json.dumps({"format_version": 2})),
         "config_wrong_type": ("config.json", open(os.path.join(p.run_dir, "config.json")).read()
                               .replace('"iterations": 20', '"iterations": "twenty"')),
         "config_bad_value": ("config.json", open(os.path.join(p.run_dir, "config.json")).read()
@@ -253,8 +254,6 @@ def run_cases(p):
         for cname, command in commands.items():
             if cname == "resume" and file in ("gaussians.ply",):
                 continue
-            if name == "config_missing_key" and cname == "export":
-                continue  # missing keys take their defaults (older runs), which export accepts
             if name.startswith("metrics") and cname != "report":
                 continue
             if name.startswith("summary") and cname not in ("report",):
