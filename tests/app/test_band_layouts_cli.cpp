@@ -22,10 +22,6 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-bool contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
-
 size_t count(const std::string& text, const std::string& part) {
   size_t n = 0;
   for (size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + 1)) ++n;
@@ -82,7 +78,9 @@ void every_command(const fs::path& run, const std::string& band_range, const std
         "render " + run.string() + " --bands " + band_range,
         "eval " + run.string() + " --fps-repeats 0", "report " + run.string() + " --views 1"}) {
     ASSERT_EQ(ddhgs(args, &out), 0) << args << "\n" << out;
-    if (!warning.empty()) EXPECT_EQ(count(out, warning), 1u) << args << "\n" << out;
+    if (!warning.empty()) {
+      EXPECT_EQ(count(out, warning), 1u) << args << "\n" << out;
+    }
   }
   EXPECT_TRUE(fs::exists(run / "report" / "index.html"));
   EXPECT_TRUE(fs::exists(run / "eval" / "metrics.json"));

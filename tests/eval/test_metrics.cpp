@@ -136,14 +136,18 @@ TEST(Metrics, BadInputThrowsOneLineError) {
 }
 
 TEST(Metrics, MeanOverViews) {
-  ImageMetrics a{20, 0.5, 0.1, 0.1, {10, 30}}, b{30, 0.7, 0.3, 0.2, {20, 40}};
+  ImageMetrics a{20, 0.5, 0.1, 0.1, {10, 30}, {0.1, 0.3}};
+  ImageMetrics b{30, 0.7, 0.3, 0.2, {20, 40}, {0.2, 0.4}};
   ImageMetrics m = mean_metrics({a, b});
   EXPECT_DOUBLE_EQ(m.psnr_db, 25);
   EXPECT_DOUBLE_EQ(m.ssim, 0.6);
   EXPECT_DOUBLE_EQ(m.sam_rad, 0.2);
   EXPECT_NEAR(m.rmse, 0.15, 1e-15);
   EXPECT_EQ(m.band_psnr_db, (std::vector<double>{15, 35}));
-  ImageMetrics c{20, 0.5, 0.1, 0.1, {10}};
+  ASSERT_EQ(m.band_rmse.size(), 2u);
+  EXPECT_NEAR(m.band_rmse[0], 0.15, 1e-15);
+  EXPECT_NEAR(m.band_rmse[1], 0.35, 1e-15);
+  ImageMetrics c{20, 0.5, 0.1, 0.1, {10}, {0.1}};
   EXPECT_THROW(mean_metrics({a, c}), core::Error);
 }
 
