@@ -6,8 +6,8 @@
 
 #include <cmath>
 
-#include "io/scene/scene.h"
 #include "io/image/image.h"
+#include "io/scene/scene.h"
 #include "io/transforms/transforms.h"
 #include "support/test_support.h"
 #include "train/background.h"
