@@ -72,6 +72,9 @@ class EvalCli : public ::testing::Test {
     fs::path run = test::temp_dir(name);
     json config = json::parse(io::read_file(test::source_dir() / "configs" / "default.json"));
     config["data"]["path"] = scene_dir_.string();
+    // A fixed background: a run that learned one would also hold background.json.
+    config["model"]["learn_background"] = false;
+    config["model"]["background_from_views"] = false;
     io::write_file_atomically(run / "config.json", config.dump(2));
     auto scene = io::load_scene(scene_dir_);
     io::write_gaussian_ply(run / "gaussians.ply", model_from_points(*scene));

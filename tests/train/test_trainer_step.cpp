@@ -63,9 +63,16 @@ nlohmann::json config_for(const fs::path& scene) {
   config["init"]["random_points"] = 3000;
   config["model"]["sh_degree_every_fraction"] = 0.25;  // degrees 0 to 3 within the run
   config["model"]["learn_background"] = true;
+  // Started from the views' border the background's gradient is at float-noise
+  // level, which Adam turns into full steps that differ between the two runs.
+  config["model"]["background_from_views"] = false;
   // Densification statistics are gathered, but no Gaussian is added: tiny
   // gradient differences must not flip a clone or prune decision.
   config["densify"]["from_fraction"] = 1.0;
+  // No opacity reset, and the means' learning rate decays over 30,000
+  // iterations as in a full run, not over these 20.
+  config["densify"]["opacity_reset_every_fraction"] = 0.0;
+  config["optim"]["means_lr_decay_fraction"] = 1500.0;
   return config;
 }
 
