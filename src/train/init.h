@@ -15,6 +15,10 @@ namespace ddhgs::train {
 struct InitOptions {
   bool random = false;  // ignore the scene's points
   int64_t random_points = 100000;
+  // Random points added beside a dataset's own points: sparse structure from
+  // motion covers the textured object, not a backdrop or floor that the
+  // views also show (Basil's turntable: docs/benchmarks.md).
+  int64_t extra_random_points = 0;
   double opacity = 0.1;
   int neighbours = 3;    // for the initial scale
   int colour_views = 8;  // training views sampled to colour points without spectra
@@ -22,7 +26,8 @@ struct InitOptions {
   uint64_t seed = 0;
 };
 
-// Random points when random is set or the scene has none.
+// Random points when random is set or the scene has none; otherwise the
+// scene's points plus extra_random_points random ones (grey).
 model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions& options);
 
 // 3DGS's scene extent: 1.1 x the largest distance of a camera centre from

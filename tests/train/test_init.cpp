@@ -93,6 +93,29 @@ TEST(Init, RandomPointsStayAroundTheObjectForANarrowField) {
   EXPECT_EQ(g.size(), 300);
 }
 
+TEST(Init, ExtraRandomPointsJoinTheDatasetsPoints) {
+  const double fx = 150;
+  auto scene = io::load_scene(write_scene("init_extra", fx));
+  // Three sparse points of known colour, as structure from motion would give.
+  scene->points.xyz = torch::tensor({0.0, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.1, 0.0}).view({3, 3});
+  scene->points.rgb = torch::tensor({255, 0, 0, 0, 255, 0, 0, 0, 255}, torch::kUInt8).view({3, 3});
+  InitOptions options;
+  options.sh_degree = 1;
+  options.extra_random_points = 200;
+  const model::Gaussians g = initialise_gaussians(*scene, options);
+  ASSERT_EQ(g.size(), 203);
+  // The dataset's points come first, unchanged, with their colours.
+  EXPECT_TRUE(torch::equal(g.means.detach().slice(0, 0, 3), scene->points.xyz.to(torch::kFloat32)));
+  const torch::Tensor rgb =
+      g.sh_dc.detach().slice(0, 0, 3).squeeze(-1) * float(model::kShC0) + 0.5f;
+  EXPECT_TRUE(torch::allclose(rgb, torch::eye(3), 0, 1e-5)) << rgb;
+  // The extra ones lie in the views' volume around the object and start grey.
+  const double field = std::hypot(kRadius, 0.5) * corner_tan(fx);
+  EXPECT_LT(g.means.detach().slice(0, 3).norm(2, 1).max().item<double>(), 1.6 * field);
+  const torch::Tensor grey = g.sh_dc.detach().slice(0, 3) * float(model::kShC0) + 0.5f;
+  EXPECT_TRUE(torch::allclose(grey, torch::full_like(grey, 0.5f), 0, 1e-6));
+}
+
 TEST(Init, BorderColourIsTheMedianOfTheBorderPixels) {
   auto scene = io::load_scene(write_scene("init_border", 14.0));
   const torch::Tensor colour = border_colour(*scene, scene->train);
