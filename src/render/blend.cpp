@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "render/channel_kernels.h"
+#include "render/pair_grads.h"
 #include "render/ranked.h"
 #include "render/recycle.h"
 #include "render/splat_row.h"
@@ -20,8 +21,6 @@ constexpr int kPixels = kTileSize * kTileSize;
 constexpr int kChunk = 64;  // Gaussians per chunk: one bit each in a 64-bit pixel mask
 constexpr int kGroupsPerRow = kTileSize / kRowLanes;
 constexpr int kGroups = kPixels / kRowLanes;  // 8-pixel groups of a tile, row-major
-// Per-Gaussian gradient slots accumulated by the blender.
-enum Slot { kMx, kMy, kConA, kConB, kConC, kOpacity, kDepth, kSlots = 8 };
 
 // Per-thread scratch for one tile; thread_local in the OpenMP workers, so it
 // is allocated once and reused by every later call. Per-pair values of a
@@ -34,6 +33,8 @@ struct TileScratch {
   alignas(32) float weight[kChunk * kPixels];  // alpha * T
   alignas(32) float raw[kChunk * kPixels];     // backward: o exp(-power) before the 0.99 clamp
   alignas(32) float trans[kChunk * kPixels];   // backward: T before the pair
+  alignas(32) float gdot[kChunk * kPixels];    // backward: colour . dL/dpixel of the pair
+  alignas(32) SlotLanes geo[kChunk];           // backward: gradient slots, lane partial sums
   uint64_t gmask[kChunk][kPixels / 64];        // backward: pixels each chunk Gaussian blends
   uint8_t live[kGroups];                       // per group: lanes not stopped and inside the image
   const float* col_rows[kChunk];               // colour row of each chunk Gaussian
@@ -154,14 +155,11 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
   }
 }
 
-// The pairs of pixel p in this chunk, in depth order: chunk Gaussian and weight.
-int pixel_pairs(const TileScratch& s, int p, uint8_t* gauss, float* weight) {
+// The chunk Gaussians that blend pixel p, in depth order.
+int pixel_gaussians(const TileScratch& s, int p, uint8_t* gauss) {
   int c = 0;
-  for (uint64_t bits = s.pmask[p]; bits; bits &= bits - 1, ++c) {
-    const int k = __builtin_ctzll(bits);
-    gauss[c] = uint8_t(k);
-    weight[c] = s.weight[k * kPixels + p];
-  }
+  for (uint64_t bits = s.pmask[p]; bits; bits &= bits - 1)
+    gauss[c++] = uint8_t(__builtin_ctzll(bits));
   return c;
 }
 
@@ -318,42 +316,57 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
             kernels::mask_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows, np, s.gmask[k],
                                kPixels / 64, s.weight + k * kPixels, 1);
         }
-        float geo[kChunk][kSlots] = {};
+        // dL/dweight of each pair, colour . dL/dpixel, into the [k][p] table.
         for (int p = 0; p < kPixels; ++p) {
           if (s.pmask[p] == 0) continue;
           uint8_t gauss[kChunk];
-          float weight[kChunk];
-          const int c = pixel_pairs(s, p, gauss, weight);
+          const int c = pixel_gaussians(s, p, gauss);
           float gdot[kChunk] = {};
           kernels::gather_dot(s.pix_rows[p], s.col_rows, np, gauss, c, gdot);
-          const float px = float(s.x0 + p % kTileSize) + 0.5f;
-          const float py = float(s.y0 + p / kTileSize) + 0.5f;
-          for (int j = 0; j < c; ++j) {
-            const int k = gauss[j];
-            const Splat& sp = ranked.splats[ranks[k]];
-            const float w = weight[j], raw = s.raw[k * kPixels + p], t = s.trans[k * kPixels + p];
-            const float g = gdot[j] + sp.depth * dd[p];
-            geo[k][kDepth] += w * dd[p];
-            prefix[p] += double(g) * w;
-            const float suffix = float(total[p] - prefix[p]);
-            const float alpha = raw < kMaxAlpha ? raw : kMaxAlpha;
-            const float d_alpha_j = t * g - (suffix + dtf[p] * tf[p]) / (1.0f - alpha);
-            if (raw > kMaxAlpha) continue;  // clamped: no gradient to o or power
-            const float dx = sp.mx - px, dy = sp.my - py;
-            const float d_power = -d_alpha_j * raw;
-            geo[k][kOpacity] += d_alpha_j * raw;  // divided by o once per Gaussian below
-            geo[k][kMx] += d_power * (sp.a * dx + sp.b * dy);
-            geo[k][kMy] += d_power * (sp.b * dx + sp.c * dy);
-            geo[k][kConA] += 0.5f * d_power * dx * dx;
-            geo[k][kConB] += d_power * dx * dy;
-            geo[k][kConC] += 0.5f * d_power * dy * dy;
-          }
+          for (int j = 0; j < c; ++j) s.gdot[gauss[j] * kPixels + p] = gdot[j];
+        }
+        uint64_t group_members[kGroups];
+        for (int gr = 0; gr < kGroups; ++gr) {
+          uint64_t members = 0;
+          for (int i = 0; i < kRowLanes; ++i) members |= s.pmask[gr * kRowLanes + i];
+          group_members[gr] = members;
+        }
+        // The geometry gradients, one 8-pixel group at a time.
+        std::memset(s.geo, 0, sizeof(SlotLanes) * size_t(m));
+        const Splat* splats[kChunk];
+        for (int k = 0; k < m; ++k) splats[k] = &ranked.splats[ranks[k]];
+        for (int gr = 0; gr < kGroups; ++gr) {
+          const int p = gr * kRowLanes;
+          if (group_members[gr] == 0) continue;
+          const GroupPairs in{s.weight + p,
+                              s.raw + p,
+                              s.trans + p,
+                              s.gdot + p,
+                              kPixels,
+                              &s.gmask[0][0],
+                              kPixels / 64,
+                              p / 64,
+                              p % 64,
+                              dd + p,
+                              tf + p,
+                              dtf + p,
+                              total + p,
+                              prefix + p,
+                              float(s.x0 + gr % kGroupsPerRow * kRowLanes) + 0.5f,
+                              float(s.y0 + gr / kGroupsPerRow) + 0.5f};
+          group_pair_grads(splats, group_members[gr], in, s.geo);
         }
         for (int k = 0; k < m; ++k) {
+          float geo[kSlots];
+          for (int q = 0; q < kSlots; ++q) {
+            float sum = 0;
+            for (int i = 0; i < kRowLanes; ++i) sum += s.geo[k][q][i];
+            geo[q] = sum;
+          }
           // d alpha / d o = exp(-power) = raw / o; Gaussians without pairs
           // (possibly o = 0) keep their zero.
-          if (geo[k][kOpacity] != 0) geo[k][kOpacity] /= ranked.splats[ranks[k]].opacity;
-          for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ranks[k]) * kSlots + q] += geo[k][q];
+          if (geo[kOpacity] != 0) geo[kOpacity] /= ranked.splats[ranks[k]].opacity;
+          for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ranks[k]) * kSlots + q] += geo[q];
         }
       }
     }
