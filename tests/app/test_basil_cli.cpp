@@ -44,10 +44,11 @@ TEST(BasilCli, DefaultSettingsLearnTheRealCapture) {
             0)
       << out;
   const auto summary = nlohmann::json::parse(io::read_file(run / "train_summary.json"));
-  // Measured 15.4 dB (one thread, 34 s at load average 6-9); the black
+  // Measured 18.4 dB (one thread, 6 s on a quiet machine); the defaults before
+  // the extra random points and learning rates gave 15.4 dB, and the black
   // background of the earlier default, which the Gaussians must paint white,
-  // gives 9.8 dB on the same run.
-  EXPECT_GT(summary["test_psnr"].get<double>(), 13.0) << summary.dump();
+  // 9.8 dB on the same run.
+  EXPECT_GT(summary["test_psnr"].get<double>(), 16.0) << summary.dump();
 }
 
 }  // namespace
