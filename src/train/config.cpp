@@ -25,7 +25,8 @@ json parse_json_file(const fs::path& path) {
   std::string text = io::read_file(path);
   try {
     return json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // parse_error, and out_of_range for a number no double holds.
     throw core::Error(path, "not valid JSON (" + core::message_of(e) + ")");
   }
 }

@@ -33,7 +33,7 @@ constexpr Range kRanges[] = {
     {"model.sh_degree", 0, 3, false, true},
     {"model.sh_degree_every", 0, kInf, false, true},
     {"init.random_points", 1, kInf, false, true},
-    {"init.extra_random_points", 0, kInf, false, true},
+    {"init.extra_random_per_pixel", 0, kInf, false},
     {"init.opacity", 0, 1, true},
     {"init.neighbours", 1, kInf, false, true},
     {"init.colour_views", 1, kInf, false, true},

@@ -176,8 +176,14 @@ model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions&
         core::log_info(std::to_string(unseen) + " of " + std::to_string(xyz.size(0)) +
                        " points are outside the sampled views; they start grey");
     }
-    if (options.extra_random_points > 0) {
-      auto extra = sample_view_volume(scene, scene.train, options.extra_random_points, generator);
+    int64_t count = 0;
+    if (!scene.train.empty()) {
+      const auto& first = scene.views[scene.train.front()].camera.intrinsics;
+      count =
+          std::llround(options.extra_random_per_pixel * double(first.width) * double(first.height));
+    }
+    if (count > 0) {
+      auto extra = sample_view_volume(scene, scene.train, count, generator);
       xyz = torch::cat({xyz, extra});
       values = torch::cat({values, torch::full({extra.size(0), n}, 0.5f)});
       core::log_info("added " + std::to_string(extra.size(0)) +

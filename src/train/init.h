@@ -15,10 +15,11 @@ namespace ddhgs::train {
 struct InitOptions {
   bool random = false;  // ignore the scene's points
   int64_t random_points = 100000;
-  // Random points added beside a dataset's own points: sparse structure from
-  // motion covers the textured object, not a backdrop or floor that the
-  // views also show (Basil's turntable: docs/benchmarks.md).
-  int64_t extra_random_points = 0;
+  // Random points added beside a dataset's own points, per pixel of the first
+  // training view: sparse structure from motion covers the textured object,
+  // not a backdrop or floor that the views also show (Basil's turntable:
+  // docs/benchmarks.md). Per pixel, so a small image is not buried in them.
+  double extra_random_per_pixel = 0;
   double opacity = 0.1;
   int neighbours = 3;    // for the initial scale
   int colour_views = 8;  // training views sampled to colour points without spectra
@@ -27,7 +28,8 @@ struct InitOptions {
 };
 
 // Random points when random is set or the scene has none; otherwise the
-// scene's points plus extra_random_points random ones (grey).
+// scene's points plus extra_random_per_pixel x (pixels of a view) random
+// ones (grey).
 model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions& options);
 
 // 3DGS's scene extent: 1.1 x the largest distance of a camera centre from

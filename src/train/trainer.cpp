@@ -228,7 +228,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   InitOptions options;
   options.random = init.at("random").get<bool>();
   options.random_points = init.at("random_points").get<int64_t>();
-  options.extra_random_points = init.at("extra_random_points").get<int64_t>();
+  options.extra_random_per_pixel = init.at("extra_random_per_pixel").get<double>();
   options.opacity = init.at("opacity").get<double>();
   options.neighbours = init.at("neighbours").get<int>();
   options.colour_views = init.at("colour_views").get<int>();

@@ -60,6 +60,10 @@ TEST(Config, UnknownKeysAndWrongTypesNameTheFileAndKey) {
   EXPECT_NE(
       error_of([&] { train::load_preset((dir / "bad.json").string()); }).find("not valid JSON"),
       std::string::npos);
+  // A number no double holds is nlohmann's out_of_range, not a parse error.
+  write(dir / "huge.json", R"({"format_version": 2, "iterations": 1e999})");
+  const std::string huge = error_of([&] { train::load_preset((dir / "huge.json").string()); });
+  EXPECT_NE(huge.find("huge.json: not valid JSON"), std::string::npos) << huge;
   EXPECT_NE(error_of([&] { train::load_preset("no-such-preset"); }).find("no such preset"),
             std::string::npos);
 }

@@ -101,9 +101,9 @@ TEST(Init, ExtraRandomPointsJoinTheDatasetsPoints) {
   scene->points.rgb = torch::tensor({255, 0, 0, 0, 255, 0, 0, 0, 255}, torch::kUInt8).view({3, 3});
   InitOptions options;
   options.sh_degree = 1;
-  options.extra_random_points = 200;
+  options.extra_random_per_pixel = 1.5;  // of a 16 x 12 view: 288 points
   const model::Gaussians g = initialise_gaussians(*scene, options);
-  ASSERT_EQ(g.size(), 203);
+  ASSERT_EQ(g.size(), 3 + 288);
   // The dataset's points come first, unchanged, with their colours.
   EXPECT_TRUE(torch::equal(g.means.detach().slice(0, 0, 3), scene->points.xyz.to(torch::kFloat32)));
   const torch::Tensor rgb =
