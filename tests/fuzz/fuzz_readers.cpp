@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 
@@ -27,6 +28,12 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
       access("/dev/shm", W_OK) == 0 ? "/dev/shm" : std::filesystem::temp_directory_path();
   scratch() = base / ("ddhgs-fuzz-" + std::to_string(getpid()));
   std::filesystem::create_directories(scratch());
+  // libFuzzer exits through exit() when its time is up; a crash keeps the
+  // folder and the input in it.
+  std::atexit([] {
+    std::error_code ignored;
+    std::filesystem::remove_all(scratch(), ignored);
+  });
   return 0;
 }
 

@@ -10,6 +10,8 @@
 
 #include "core/error.h"
 #include "io/cube/cube_formats.h"
+#include "io/cube/pickle_check.h"
+#include "io/cube/zip_check.h"
 #include "io/files/byte_count.h"
 
 namespace ddhgs::io::detail {
@@ -41,10 +43,12 @@ void require_zip_magic(const fs::path& path) {
 // by the address LibTorch's storage will point at, for the caller to check.
 using RecordBytes = std::map<const void*, size_t>;
 
-torch::IValue unpickle(caffe2::serialize::PyTorchStreamReader& reader, RecordBytes* stored) {
+torch::IValue unpickle(caffe2::serialize::PyTorchStreamReader& reader, RecordBytes* stored,
+                       const fs::path& path) {
   std::tuple<at::DataPtr, size_t> record = reader.getRecord("data.pkl");
   const char* pickle = static_cast<const char*>(std::get<0>(record).get());
   const size_t size = std::get<1>(record);
+  check_pickle(pickle, size, path);
   size_t pos = 0;
   auto read = [&](char* buffer, size_t n) {
     n = std::min(n, size - pos);
@@ -102,8 +106,9 @@ Cube read_pt(const fs::path& path, const CubeReadOptions& options) {
   torch::Tensor data;
   try {
     caffe2::serialize::PyTorchStreamReader reader(path.string());
+    check_zip_record_sizes(path);
     RecordBytes stored;
-    torch::IValue value = unpickle(reader, &stored);
+    torch::IValue value = unpickle(reader, &stored, path);
     if (!value.isTensor())
       throw core::Error(path, "holds a " + value.tagKind() + ", expected a single tensor");
     data = value.toTensor();

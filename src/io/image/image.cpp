@@ -2,12 +2,13 @@
 // implementation) and PNG writing through stb_image_write.
 #include "io/image/image.h"
 
-#include <algorithm>
+#include <limits>
 
 #include "core/error.h"
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
 #include "io/files/byte_count.h"
+#include "io/image/stb_guards.h"
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmissing-field-initializers"
@@ -42,44 +43,11 @@ void append_bytes(void* context, void* data, int size) {
   static_cast<std::string*>(context)->append(static_cast<const char*>(data), size_t(size));
 }
 
-// stb_image trusts a JPEG's Huffman tables: one listing more than 256 codes
-// makes it write past a fixed array (found by the fuzzer, tests/fuzz). The
-// marker segments before the first scan are walked here and such a table is
-// refused before stb sees the file. Anything else malformed is left to stb.
-void check_jpeg_huffman_tables(const fs::path& path, const std::string& bytes) {
-  const auto byte = [&](size_t i) { return uint8_t(bytes[i]); };
-  if (bytes.size() < 2 || byte(0) != 0xFF || byte(1) != 0xD8) return;  // not a JPEG
-  size_t at = 2;
-  while (at + 4 <= bytes.size()) {
-    if (byte(at) != 0xFF) return;  // not a marker: stb reports it
-    const uint8_t marker = byte(at + 1);
-    if (marker == 0xFF) {  // fill byte
-      ++at;
-      continue;
-    }
-    if (marker == 0xDA || marker == 0xD9) return;  // start of scan, end of image
-    const size_t length = size_t(byte(at + 2)) << 8 | byte(at + 3);
-    const size_t end = std::min(bytes.size(), at + 2 + length);
-    if (marker == 0xC4) {
-      for (size_t table = at + 4; table + 17 <= end;) {
-        size_t codes = 0;
-        for (size_t i = 0; i < 16; ++i) codes += byte(table + 1 + i);
-        if (codes > 256)
-          throw core::Error(path, "corrupt JPEG: a Huffman table lists " + std::to_string(codes) +
-                                      " codes (at most 256)");
-        table += 17 + codes;
-      }
-    }
-    if (length < 2) return;
-    at += 2 + length;
-  }
-}
-
 }  // namespace
 
 torch::Tensor read_image(const fs::path& path) {
   std::string bytes = load_bytes(path);
-  check_jpeg_huffman_tables(path, bytes);
+  detail::check_before_stb(path, bytes);
   int width = 0, height = 0, channels = 0;
   // The header's size decides the allocation: it must be one the data can fill.
   if (stbi_info_from_memory(as_stbi(bytes), int(bytes.size()), &width, &height, &channels))
@@ -134,7 +102,7 @@ CubeInfo probe_image(const fs::path& path) {
   if (fs::file_size(path, ec) == 0)
     throw core::Error(path, "empty file, expected a PNG or JPEG image");
   const std::string bytes = load_bytes(path);  // small: an 8-bit picture
-  check_jpeg_huffman_tables(path, bytes);
+  check_before_stb(path, bytes);
   int width = 0, height = 0, channels = 0;
   if (!stbi_info_from_memory(as_stbi(bytes), int(bytes.size()), &width, &height, &channels))
     throw core::Error(

@@ -267,9 +267,10 @@ PointCloud read_point_ply(const fs::path& path) {
   const int red = vertex.find("red"), green = vertex.find("green"), blue = vertex.find("blue");
   if (red >= 0 && green >= 0 && blue >= 0) {
     points.rgb = torch::empty({P, 3}, torch::kUInt8);
-    uint8_t* base = points.rgb.data_ptr<uint8_t>();
+    // As in add_columns: no offset on the null pointer of zero points.
+    uint8_t* base = P > 0 ? points.rgb.data_ptr<uint8_t>() : nullptr;
     for (int c : {0, 1, 2})
-      columns.push_back({std::array{red, green, blue}[c], nullptr, base + c, 3});
+      columns.push_back({std::array{red, green, blue}[c], nullptr, base ? base + c : nullptr, 3});
   }
   const auto spectra = numbered_properties(path, vertex, "spec_");
   if (!spectra.empty()) {

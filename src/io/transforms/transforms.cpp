@@ -242,8 +242,9 @@ TransformsFile read_transforms(const fs::path& path) {
   json root;
   try {
     root = json::parse(text);
-  } catch (const json::parse_error& e) {
-    // The message carries the line and column, the useful part for a hand-edited file.
+  } catch (const json::exception& e) {
+    // The message carries the line and column, the useful part for a hand-edited
+    // file. A number too large for a double is out_of_range, not parse_error.
     throw core::Error(path, "not valid JSON: " + core::message_of(e));
   }
   Reader in(path);
