@@ -1,26 +1,37 @@
 #!/usr/bin/env bash
-# The readers' memory-safety check, apart from scripts/test.sh (its build of
-# the core and io layers again is too long for CI's time budget; see
-# docs/reliability.md): builds the core and io layers, test_io and the reader
-# fuzzer with clang, AddressSanitizer and UndefinedBehaviorSanitizer (CMake
-# option DDHGS_SANITIZE), runs test_io, then fuzzes every reader for a
-# bounded time. Exit status is non-zero on any
-# sanitizer report, test failure or fuzzer crash; a crashing input is left in
-# $SANITIZE_BUILD_DIR/fuzz-artifacts/ (add it to tests/fuzz/regressions/).
-# Environment: SANITIZE_BUILD_DIR (default build-sanitize), FUZZ_SECONDS (90),
-# SANITIZE_JOBS (parallel compiles, default: all cores).
+# The readers' memory-safety check, a step of scripts/test.sh (CI) after
+# ctest: builds the core and io layers, test_io and the reader fuzzer with
+# clang, AddressSanitizer and UndefinedBehaviorSanitizer (CMake option
+# DDHGS_SANITIZE) in a build folder of their own, runs test_io (which replays
+# tests/fuzz/regressions/), then fuzzes every reader for a bounded time. Exit
+# status is non-zero on any sanitizer report, test failure or fuzzer crash; a
+# crashing input is left in $SANITIZE_BUILD_DIR/fuzz-artifacts/ and printed
+# in base64 (add it to tests/fuzz/regressions/). Run time: docs/reliability.md.
+# Installs clang and its sanitizer runtimes when missing (as root, or through
+# sudo); everything else it builds against is what scripts/setup.sh installs.
+# Environment: SANITIZE_BUILD_DIR (default build-sanitize), FUZZ_SECONDS
+# (default 120), FUZZ_SEED (default 1; 0: random), SANITIZE_JOBS (parallel
+# compiles, default: all cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=lib/packages.sh
+source scripts/lib/packages.sh
+
+# clang only recommends its sanitizer and libFuzzer runtimes
+# (libclang-rt-14-dev), which apt-get --no-install-recommends leaves out;
+# libomp-14-dev is OpenMP for clang; llvm-14 symbolizes the stack traces.
+packages=(clang libclang-rt-14-dev libomp-14-dev llvm-14)
+ensure_packages sanitize "${packages[@]}"
+export PATH="/usr/lib/llvm-14/bin:$PATH"
 
 build_dir="${SANITIZE_BUILD_DIR:-build-sanitize}"
-if ! command -v clang++ >/dev/null; then
-  echo "sanitize: needs clang++ with its sanitizer runtimes:" \
-    "apt-get install clang libclang-rt-14-dev libomp-14-dev" >&2
-  exit 1
-fi
-fuzz_seconds="${FUZZ_SECONDS:-90}"
+fuzz_seconds="${FUZZ_SECONDS:-120}"
+# A fixed seed by default, so a CI run is repeatable: a crash it reports is
+# found again by the same command (FUZZ_SEED=0 lets libFuzzer pick one).
+fuzz_seed="${FUZZ_SEED:-1}"
 start=$SECONDS
 if [ ! -f "$build_dir/build.ninja" ]; then
+  mkdir -p "$build_dir"
   CC=clang CXX=clang++ cmake -S . -B "$build_dir" -G Ninja -DDDHGS_SANITIZE=ON \
     -DCMAKE_BUILD_TYPE=RelWithDebInfo -DDDHGS_BUILD_BENCH=OFF >"$build_dir.cmake.log" 2>&1 || {
     echo "sanitize: cmake configuration failed (log: $build_dir.cmake.log)" >&2
@@ -49,16 +60,25 @@ corpus="$build_dir/fuzz-corpus"
 artifacts="$build_dir/fuzz-artifacts"
 rm -rf "$corpus/seeds"
 mkdir -p "$corpus/found" "$artifacts"
+touch "$build_dir/fuzz.start"
 "$build_dir/tests/fuzz_seeds" "$corpus/seeds"
 # rss/malloc limits: a reader that trusts a corrupt size and allocates
 # gigabytes is a defect too.
-"$build_dir/tests/fuzz_readers" -max_total_time="$fuzz_seconds" -timeout=20 -rss_limit_mb=2048 \
+"$build_dir/tests/fuzz_readers" -seed="$fuzz_seed" -max_total_time="$fuzz_seconds" -timeout=20 -rss_limit_mb=2048 \
   -malloc_limit_mb=1024 -max_len=16384 -print_final_stats=1 -artifact_prefix="$artifacts/" \
   "$corpus/found" "$corpus/seeds" 2>"$build_dir/fuzz.log" || {
+  grep -m1 '^INFO: Seed:' "$build_dir/fuzz.log" >&2 || true
   tail -60 "$build_dir/fuzz.log" >&2
+  # The CI machine is gone after the run: its log alone must carry the input.
+  find "$artifacts" -type f -newer "$build_dir/fuzz.start" | while read -r input; do
+    echo "sanitize: $(basename "$input") (base64):" >&2
+    base64 "$input" >&2
+  done
   echo "sanitize: the reader fuzzer found a defect (inputs in $artifacts)" >&2
   exit 1
 }
-grep -E "^stat::number_of_executed_units|^stat::peak_rss_mb" "$build_dir/fuzz.log" | tr '\n' ' '
-echo
+executed=$(sed -n 's/^stat::number_of_executed_units: *//p' "$build_dir/fuzz.log")
+peak_rss=$(sed -n 's/^stat::peak_rss_mb: *//p' "$build_dir/fuzz.log")
+echo "sanitize: test_io passed under ASan+UBSan; the fuzzer ran ${executed:-?} inputs in" \
+  "$((SECONDS - tested)) s (peak ${peak_rss:-?} MB) with no crash"
 echo "sanitize: build $((built - start)) s, test_io $((tested - built)) s, fuzzing $((SECONDS - tested)) s"

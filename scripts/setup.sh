@@ -6,6 +6,8 @@
 # Quiet when everything is already there. Environment: BUILD_DIR (default build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=lib/packages.sh
+source scripts/lib/packages.sh
 
 with_tests=0
 for arg in "$@"; do
@@ -28,29 +30,7 @@ if [ "$with_tests" = 1 ]; then
   packages+=(python3 python3-numpy python3-torch python3-pil chromium clang-format)
 fi
 
-missing=()
-for p in "${packages[@]}"; do
-  status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
-  [ "$status" = "install ok installed" ] || missing+=("$p")
-done
-
-if [ "${#missing[@]}" -gt 0 ]; then
-  echo "setup: installing ${missing[*]}" >&2
-  sudo=""
-  if [ "$(id -u)" != 0 ]; then
-    if command -v sudo >/dev/null; then sudo="sudo"; else
-      echo "setup: missing packages (${missing[*]}) and not root: install them with apt-get as root" >&2
-      exit 1
-    fi
-  fi
-  export DEBIAN_FRONTEND=noninteractive
-  if ! { $sudo apt-get update -qq >/dev/null &&
-         $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/tmp/ddhgs-apt.log 2>&1; }; then
-    echo "setup: apt-get could not install: ${missing[*]} (log: /tmp/ddhgs-apt.log)" >&2
-    tail -5 /tmp/ddhgs-apt.log >&2 || true
-    exit 1
-  fi
-fi
+ensure_packages setup "${packages[@]}"
 
 build_dir="${BUILD_DIR:-build}"
 # The main command builds only the program; the tests and benchmarks (about

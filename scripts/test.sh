@@ -1,8 +1,14 @@
 #!/usr/bin/env bash
 # Sets up (packages + build of everything, warnings as errors), checks the
-# formatting of the tree and runs the whole test suite. Exit status is
-# non-zero on any failure, and on any skipped test that tests/expected_skips.txt
-# does not list.
+# formatting of the tree, runs the whole test suite, then the readers under
+# AddressSanitizer/UBSan and their fuzzer (scripts/sanitize.sh, about 5
+# minutes of the total; docs/reliability.md). Exit status is non-zero on any
+# failure, on any sanitizer report or fuzzer crash, and on any skipped test
+# that tests/expected_skips.txt does not list. Arguments go to ctest.
+# Environment: BUILD_DIR (default build; the sanitizer build goes to
+# BUILD_DIR-sanitize), DDHGS_SKIP_SANITIZE=1 leaves out the sanitizer and
+# fuzzing step (for quick local runs; CI never sets it), and the variables
+# of scripts/sanitize.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh --with-tests
@@ -32,3 +38,12 @@ if [ "${#unexpected[@]}" -gt 0 ]; then
   echo "test: ${#unexpected[@]} test(s) skipped that tests/expected_skips.txt does not list: ${unexpected[*]}" >&2
   exit 1
 fi
+
+# After ctest, so that a failing test is reported first.
+if [ "${DDHGS_SKIP_SANITIZE:-0}" = 1 ]; then
+  echo "test: sanitizer and fuzzing step skipped (DDHGS_SKIP_SANITIZE=1)"
+else
+  SANITIZE_BUILD_DIR="${SANITIZE_BUILD_DIR:-$build_dir-sanitize}" scripts/sanitize.sh
+fi
+# CI reads the closing lines: ctest's result again, after the sanitizer's.
+grep -E '^[0-9]+% tests passed|^Total Test time' "$log" || true
