@@ -20,8 +20,10 @@ torch::Tensor border_colour(const io::Scene& scene, const std::vector<int>& view
       pixels.push_back(image.reshape({-1, n}));
       continue;
     }
-    pixels.push_back(image.slice(0, 0, b).reshape({-1, n}));
-    pixels.push_back(image.slice(0, h - b, h).reshape({-1, n}));
+    // Copies: a view of the top or bottom rows would keep the whole float
+    // image alive (185 MB for a 640x512x141 view) until the median.
+    pixels.push_back(image.slice(0, 0, b).reshape({-1, n}).clone());
+    pixels.push_back(image.slice(0, h - b, h).reshape({-1, n}).clone());
     pixels.push_back(image.slice(0, b, h - b).slice(1, 0, b).reshape({-1, n}));
     pixels.push_back(image.slice(0, b, h - b).slice(1, w - b, w).reshape({-1, n}));
   }
