@@ -10,8 +10,8 @@
 # Installs clang and its sanitizer runtimes when missing (as root, or through
 # sudo); everything else it builds against is what scripts/setup.sh installs.
 # Environment: SANITIZE_BUILD_DIR (default build-sanitize), FUZZ_SECONDS
-# (default 120), FUZZ_SEED (default 1; 0: random), SANITIZE_JOBS (parallel
-# compiles, default: all cores).
+# (cap, default 300), FUZZ_RUNS (inputs, default 300000), FUZZ_SEED (default
+# 1; 0: random), SANITIZE_JOBS (parallel compiles, default: all cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=lib/packages.sh
@@ -25,7 +25,10 @@ ensure_packages sanitize "${packages[@]}"
 export PATH="/usr/lib/llvm-14/bin:$PATH"
 
 build_dir="${SANITIZE_BUILD_DIR:-build-sanitize}"
-fuzz_seconds="${FUZZ_SECONDS:-120}"
+fuzz_seconds="${FUZZ_SECONDS:-300}"
+# A fixed number of inputs, so that a CI run is the same run on any machine
+# speed (FUZZ_SECONDS only caps a slow one).
+fuzz_runs="${FUZZ_RUNS:-300000}"
 # A fixed seed by default, so a CI run is repeatable: a crash it reports is
 # found again by the same command (FUZZ_SEED=0 lets libFuzzer pick one).
 fuzz_seed="${FUZZ_SEED:-1}"
@@ -64,7 +67,7 @@ touch "$build_dir/fuzz.start"
 "$build_dir/tests/fuzz_seeds" "$corpus/seeds"
 # rss/malloc limits: a reader that trusts a corrupt size and allocates
 # gigabytes is a defect too.
-"$build_dir/tests/fuzz_readers" -seed="$fuzz_seed" -max_total_time="$fuzz_seconds" -timeout=20 -rss_limit_mb=2048 \
+"$build_dir/tests/fuzz_readers" -seed="$fuzz_seed" -runs="$fuzz_runs" -max_total_time="$fuzz_seconds" -timeout=20 -rss_limit_mb=2048 \
   -malloc_limit_mb=1024 -max_len=16384 -print_final_stats=1 -artifact_prefix="$artifacts/" \
   "$corpus/found" "$corpus/seeds" 2>"$build_dir/fuzz.log" || {
   grep -m1 '^INFO: Seed:' "$build_dir/fuzz.log" >&2 || true

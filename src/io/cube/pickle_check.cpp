@@ -66,9 +66,12 @@ class PickleWalk {
         skip_line();
         skip_line();
         return push(0);
-      case 'q':  // BINPUT: memoizes the top
+      // BINPUT, LONG_BINPUT: memoize the top under an index.
+      case 'q':
+        memoize(1, opcode);
         return pops(1, 1, 1, opcode);
-      case 'r':  // LONG_BINPUT
+      case 'r':
+        memoize(4, opcode);
         return pops(1, 1, 4, opcode);
       case 'Q':  // BINPERSID: a tuple for a storage
         return pops(1, 1, 0, opcode);
@@ -121,6 +124,19 @@ class PickleWalk {
     return true;
   }
 
+  // LibTorch grows its memo table to the index given: a pickler numbers
+  // entries in order, so an index past the next free one is corrupt (one of
+  // 1.2e9 made LibTorch allocate 18.8 GB).
+  void memoize(size_t index_bytes, uint8_t opcode) {
+    uint64_t index = 0;
+    for (size_t i = 0; i < index_bytes && pos_ + i < size_; ++i)
+      index |= uint64_t(uint8_t(pickle_[pos_ + i])) << (8 * i);
+    if (index > memo_size_)
+      fail(opcode, "memo index " + std::to_string(index) + " past the " +
+                       std::to_string(memo_size_) + " entries so far");
+    memo_size_ = std::max<uint64_t>(memo_size_, index + 1);
+  }
+
   bool push(size_t argument_bytes) {
     pos_ += argument_bytes;
     ++depth_;
@@ -167,6 +183,7 @@ class PickleWalk {
   size_t pos_ = 0;
   size_t at_ = 0;  // where the current opcode starts
   size_t depth_ = 0;
+  uint64_t memo_size_ = 0;  // memo entries so far
   std::vector<size_t> marks_;
 };
 
