@@ -52,7 +52,7 @@ torch::IValue unpickle(caffe2::serialize::PyTorchStreamReader& reader, RecordByt
   size_t pos = 0;
   auto read = [&](char* buffer, size_t n) {
     n = std::min(n, size - pos);
-    std::memcpy(buffer, pickle + pos, n);
+    if (n > 0) std::memcpy(buffer, pickle + pos, n);  // an empty data.pkl has no pointer
     pos += n;
     return n;
   };
