@@ -5,6 +5,7 @@
 #include "core/error.h"
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
+#include "io/files/little_endian.h"
 
 #if __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
 #error "the .npy and ENVI readers assume a little-endian host"
@@ -101,12 +102,12 @@ NpyHeader read_header(std::istream& in, uint64_t file_size, const fs::path& path
   int major = static_cast<unsigned char>(prefix[6]);
   uint64_t header_len = 0, prefix_len = 0;
   if (major == 1) {
-    header_len = uint8_t(prefix[8]) | uint64_t(uint8_t(prefix[9])) << 8;
+    header_len = little_endian({prefix, 10}, 8, 2);
     prefix_len = 10;
   } else if (major == 2 || major == 3) {
     in.read(prefix + 10, 2);
     if (in.gcount() < 2) throw core::Error(path, "truncated .npy header");
-    for (int i = 0; i < 4; ++i) header_len |= uint64_t(uint8_t(prefix[8 + i])) << (8 * i);
+    header_len = little_endian({prefix, 12}, 8, 4);
     prefix_len = 12;
   } else {
     throw core::Error(

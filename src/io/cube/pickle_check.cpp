@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "io/files/little_endian.h"
 
 namespace ddhgs::io::detail {
 namespace fs = std::filesystem;
@@ -128,9 +129,7 @@ class PickleWalk {
   // entries in order, so an index past the next free one is corrupt (one of
   // 1.2e9 made LibTorch allocate 18.8 GB).
   void memoize(size_t index_bytes, uint8_t opcode) {
-    uint64_t index = 0;
-    for (size_t i = 0; i < index_bytes && pos_ + i < size_; ++i)
-      index |= uint64_t(uint8_t(pickle_[pos_ + i])) << (8 * i);
+    const uint64_t index = little_endian({pickle_, size_}, pos_, index_bytes);
     if (index > memo_size_)
       fail(opcode, "memo index " + std::to_string(index) + " past the " +
                        std::to_string(memo_size_) + " entries so far");
@@ -145,9 +144,7 @@ class PickleWalk {
 
   // BINUNICODE's 4-byte little-endian length, checked against what is left.
   size_t string_length() {
-    uint64_t length = 0;
-    for (size_t i = 0; i < 4 && pos_ + i < size_; ++i)
-      length |= uint64_t(uint8_t(pickle_[pos_ + i])) << (8 * i);
+    const uint64_t length = little_endian({pickle_, size_}, pos_, 4);
     const size_t left = size_ - std::min(size_, pos_ + 4);
     if (length > left)
       throw core::Error(path_, "corrupt torch.save pickle: a string of " + std::to_string(length) +

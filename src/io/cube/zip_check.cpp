@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "io/files/byte_count.h"
+#include "io/files/little_endian.h"
 
 namespace ddhgs::io::detail {
 namespace fs = std::filesystem;
@@ -22,13 +23,6 @@ constexpr uint32_t kEndSignature = 0x06054b50, kZip64LocatorSignature = 0x07064b
 constexpr size_t kEndBytes = 22, kZip64LocatorBytes = 20, kZip64EndBytes = 56, kEntryBytes = 46;
 constexpr uint32_t kZip64Marker = 0xFFFFFFFF;
 constexpr uint16_t kZip64ExtraField = 1;
-
-uint64_t little_endian(const std::string& bytes, size_t at, size_t width) {
-  uint64_t value = 0;
-  for (size_t i = 0; i < width && at + i < bytes.size(); ++i)
-    value |= uint64_t(uint8_t(bytes[at + i])) << (8 * i);
-  return value;
-}
 
 class CentralDirectory {
  public:
