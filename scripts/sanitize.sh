@@ -5,9 +5,9 @@
 # DDHGS_SANITIZE) in a build folder of their own, runs test_io (which replays
 # tests/fuzz/regressions/), then fuzzes every reader for a bounded time. Exit
 # status is non-zero on any sanitizer report or test failure in test_io, and
-# on a fuzzer crash with FUZZ_STRICT=1; a
-# crashing input is left in $SANITIZE_BUILD_DIR/fuzz-artifacts/ and printed
-# in base64 (add it to tests/fuzz/regressions/). Run time: docs/reliability.md.
+# on a fuzzer crash with FUZZ_STRICT=1; a crashing input is left in
+# $SANITIZE_BUILD_DIR/fuzz-artifacts/ and printed in base64 (add it to
+# tests/fuzz/regressions/). Run time: docs/reliability.md.
 # Installs clang and its sanitizer runtimes when missing (as root, or through
 # sudo); everything else it builds against is what scripts/setup.sh installs.
 # Environment: SANITIZE_BUILD_DIR (default build-sanitize), FUZZ_SECONDS
@@ -29,11 +29,10 @@ export PATH="/usr/lib/llvm-14/bin:$PATH"
 
 build_dir="${SANITIZE_BUILD_DIR:-build-sanitize}"
 fuzz_seconds="${FUZZ_SECONDS:-300}"
-# A fixed number of inputs, so that a CI run is the same run on any machine
-# speed (FUZZ_SECONDS only caps a slow one).
+# A fixed number of inputs from a fixed seed bounds the run's work on any
+# machine speed (FUZZ_SECONDS only caps a slow one). It does not make runs
+# identical across machines (see below); FUZZ_SEED=0 lets libFuzzer pick.
 fuzz_runs="${FUZZ_RUNS:-300000}"
-# A fixed seed by default, so a CI run is repeatable: a crash it reports is
-# found again by the same command (FUZZ_SEED=0 lets libFuzzer pick one).
 fuzz_seed="${FUZZ_SEED:-1}"
 start=$SECONDS
 if [ ! -f "$build_dir/build.ninja" ]; then
