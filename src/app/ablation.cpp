@@ -16,6 +16,7 @@
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
 #include "train/config.h"
+#include "train/run_config.h"
 #include "train/trainer.h"
 
 namespace ddhgs::app {
@@ -42,8 +43,7 @@ json training_inputs(json config) {
   if (config.at("loss").at("diffusion").get<double>() == 0) {
     config.erase("diffusion");
   } else {
-    for (const char* key : {"sampler_steps", "start_strength", "eta", "sampler_samples"})
-      config["diffusion"].erase(key);
+    for (const std::string& key : train::sampler_keys()) config["diffusion"].erase(key);
   }
   return config;
 }
@@ -61,9 +61,7 @@ bool same_config(const train::RunPaths& paths, const json& config) {
 // the Gaussian iterations.
 json without_finetuning(json config) {
   if (config.contains("diffusion"))
-    for (const char* key :
-         {"finetune_steps", "finetune_batch", "finetune_crop", "finetune_cache_mb"})
-      config["diffusion"].erase(key);
+    for (const std::string& key : train::finetune_keys()) config["diffusion"].erase(key);
   return config;
 }
 
@@ -83,11 +81,7 @@ bool rewind_to_finetuning(const train::RunPaths& paths, const json& config) {
   }
   core::log_info("  " + paths.root.string() +
                  " differs only in the denoiser's fine-tuning; continuing from " + at_end.string());
-  fs::remove(paths.summary());
-  io::write_atomically(paths.checkpoint(), [&](const fs::path& tmp) {
-    fs::copy_file(at_end, tmp, fs::copy_options::overwrite_existing);
-  });
-  io::write_file_atomically(paths.config(), config.dump(2) + "\n");
+  train::rewind_to_gaussian_end(paths, config.at("iterations").get<int64_t>(), config);
   return true;
 }
 
@@ -239,9 +233,9 @@ json row_config(const AblationOptions& options, const AblationRow& row) {
 // Every row is judged on the held-out views: without them the table would
 // be empty after hours of training.
 void require_test_views(const json& config) {
-  const fs::path data = config.at("data").at("path").get<std::string>();
-  if (io::load_scene(data, train::load_options(config))->test.empty())
-    throw core::Error(data,
+  const train::DataConfig data = train::parse_run_config(config, "ablation").data;
+  if (io::load_scene(data.path, data.load)->test.empty())
+    throw core::Error(data.path,
                       "has no held-out views, and an ablation compares test metrics "
                       "(a scene needs 10 or more views, or test_filenames)");
 }

@@ -67,7 +67,7 @@ Action setup(CLI::App& parent) {
     eval::RunRecords records;
     fs::path name = fs::absolute(run.root).lexically_normal();
     records.name = (name.filename().empty() ? name.parent_path() : name).filename().string();
-    records.config = run.config;
+    records.config = run.config.resolved;
     records.metrics_log = eval::read_metrics_log(paths.metrics());
     records.train_summary = read_json_if_present(paths.summary());
     records.eval_metrics = read_json_if_present(run.root / "eval" / "metrics.json");

@@ -7,6 +7,7 @@
 #include "io/ply/ply.h"
 #include "train/config.h"
 #include "train/diffusion_term.h"
+#include "train/run_config.h"
 #include "train/run_folder.h"
 
 namespace ddhgs::app {
@@ -23,10 +24,9 @@ fs::path dataset_path(const TrainedRun& run, const std::string& data_override) {
     return data_override;
   }
   const fs::path config_file = train::RunPaths{run.root}.config();
-  const auto& path = run.config.at("data").at("path");
-  core::require(path.is_string() && !path.get<std::string>().empty(), config_file,
+  fs::path p = run.config.data.path;
+  core::require(!p.empty(), config_file,
                 "data.path is empty: which dataset was this run trained on? (pass --data DIR)");
-  fs::path p = path.get<std::string>();
   if (p.is_relative() && !fs::exists(p) && fs::exists(run.root / p)) p = run.root / p;
   core::require(
       fs::is_directory(p), config_file,
@@ -97,13 +97,13 @@ RunModel open_run_model(const fs::path& run_dir) {
   RunModel run;
   run.root = run_dir;
   train::RunPaths paths{run_dir};
-  run.config = train::read_run_config(paths);
+  run.config = train::parse_run_config(train::read_run_config(paths), paths.config().string());
   core::require(fs::exists(paths.gaussians()), paths.gaussians(),
                 "missing: the run has no final model (did training finish?)");
   run.ply = io::read_gaussian_ply(paths.gaussians());
-  run.background = train::background(run.config, run.ply.bands());
-  const auto& model = run.config.at("model");
-  if (model.at("learn_background").get<bool>() || model.at("background_from_views").get<bool>())
+  run.background = train::background(run.config.model, run.ply.bands());
+  const train::ModelConfig& model = run.config.model;
+  if (model.learn_background || model.background_from_views)
     run.background = read_learned_background(paths.learned_background(), run.ply.bands());
   return run;
 }
@@ -115,7 +115,7 @@ TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_ove
   run.config = std::move(model.config);
   train::RunPaths paths{run_dir};
   fs::path data = dataset_path(run, data_override);
-  run.scene = io::load_scene(data, train::load_options(run.config));
+  run.scene = io::load_scene(data, run.config.data.load);
   io::log_scene_messages(*run.scene);
   check_model_matches_scene(paths.gaussians(), model.ply, *run.scene);
   run.gaussians = model::from_ply(model.ply);
@@ -126,9 +126,7 @@ TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_ove
     core::require(run.denoiser->unet->options().bands == run.scene->bands(), denoiser,
                   "the denoiser has " + std::to_string(run.denoiser->unet->options().bands) +
                       " bands but the dataset loads " + std::to_string(run.scene->bands()));
-    run.sampler =
-        train::diffusion_term_options(run.config, run.scene->bands(), paths.config().string())
-            .sampler;
+    run.sampler = run.config.diffusion.sampler;
   }
   return run;
 }

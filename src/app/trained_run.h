@@ -15,12 +15,13 @@
 #include "io/scene/scene.h"
 #include "model/diffusion.h"
 #include "model/gaussians.h"
+#include "train/run_config.h"
 
 namespace ddhgs::app {
 
 struct TrainedRun {
   std::filesystem::path root;
-  nlohmann::json config;
+  train::RunConfig config;  // RUN/config.json
   std::unique_ptr<io::Scene> scene;
   model::Gaussians gaussians;
   torch::Tensor background;  // [N]
@@ -48,7 +49,7 @@ model::SamplerOptions sampler_options(const TrainedRun& run, const SamplerFlags&
 // when the folder is not a run or a file is missing or malformed.
 struct RunModel {
   std::filesystem::path root;
-  nlohmann::json config;
+  train::RunConfig config;
   io::GaussianPly ply;
   torch::Tensor background;  // [N]
 };

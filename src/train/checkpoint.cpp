@@ -14,7 +14,11 @@ void add_module_groups(model::Adam& adam, const TrainedModule& module) {
 
 void save_checkpoint(const fs::path& path, const TrainState& state) {
   torch::serialize::OutputArchive archive;
-  nlohmann::json meta = state.meta;
+  const RunCounters& c = state.counters;
+  nlohmann::json meta = {{"densify_added", c.densify_added},
+                         {"densify_removed", c.densify_removed},
+                         {"seconds", c.seconds}};
+  if (c.gaussian_seconds >= 0) meta["gaussian_seconds"] = c.gaussian_seconds;
   meta["format_version"] = kCheckpointFormatVersion;
   meta["iteration"] = state.iteration;
   meta["active_sh_degree"] = state.gaussians.active_sh_degree;
@@ -70,8 +74,17 @@ void load_checkpoint(const fs::path& path, TrainState& state,
     throw core::Error(path, "checkpoint format_version " + std::to_string(version) +
                                 " is not supported by this ddhgs (reads " +
                                 std::to_string(kCheckpointFormatVersion) + ")");
-  state.iteration = meta.at("iteration").get<int64_t>();
-  state.meta = meta;
+  try {
+    state.iteration = meta.at("iteration").get<int64_t>();
+    RunCounters& c = state.counters;
+    c.densify_added = meta.at("densify_added").get<int64_t>();
+    c.densify_removed = meta.at("densify_removed").get<int64_t>();
+    c.seconds = meta.at("seconds").get<double>();
+    c.gaussian_seconds = meta.value("gaussian_seconds", -1.0);
+    state.gaussians.active_sh_degree = meta.at("active_sh_degree").get<int>();
+  } catch (const nlohmann::json::exception&) {
+    throw core::Error(path, "checkpoint meta record is malformed");
+  }
 
   try {
     torch::serialize::InputArchive gaussians;
@@ -82,8 +95,6 @@ void load_checkpoint(const fs::path& path, TrainState& state,
       gaussians.read(model::Gaussians::tensor_names()[i], t);
       *tensors[i] = t.to(torch::kFloat32).contiguous().requires_grad_(true);
     }
-    state.gaussians.active_sh_degree = meta.at("active_sh_degree").get<int>();
-
     torch::serialize::InputArchive modules;
     archive.read("modules", modules);
     for (auto& m : state.modules) {

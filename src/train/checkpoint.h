@@ -1,6 +1,6 @@
 // Checkpoints: everything a run needs to continue bit-for-bit, written
 // atomically. A LibTorch archive with a "meta" JSON string (format_version,
-// iteration, counters), the Gaussians, the Adam state, densification
+// iteration, RunCounters), the Gaussians, the Adam state, densification
 // statistics and any extra modules (wavelength encoder, denoiser) by name.
 #pragma once
 #include <torch/torch.h>
@@ -29,9 +29,17 @@ struct TrainedModule {
   double lr = 0;
 };
 
+// Counters that run on across resumes (in the checkpoint's meta record).
+struct RunCounters {
+  int64_t densify_added = 0, densify_removed = 0;  // Gaussians, over the run
+  double seconds = 0;                              // wall time of the run so far
+  // Wall time of the Gaussian iterations, once they are done; < 0 before.
+  double gaussian_seconds = -1;
+};
+
 struct TrainState {
   int64_t iteration = 0;  // iterations completed
-  nlohmann::json meta;    // free-form counters (kept as written)
+  RunCounters counters;
   model::Gaussians gaussians;
   model::Adam adam;
   model::DensifyStats stats;

@@ -207,29 +207,4 @@ void apply_assignment(json& config, const std::string& assignment) {
   set_key(config, assignment.substr(0, eq), assignment.substr(eq + 1));
 }
 
-io::LoadOptions load_options(const json& config) {
-  const json& d = config.at("data");
-  io::LoadOptions o;
-  o.downscale = d.at("downscale").get<int>();
-  o.rgb = d.at("rgb").get<bool>();
-  o.band_min_nm = d.at("band_min_nm").get<double>();
-  o.band_max_nm = d.at("band_max_nm").get<double>();
-  o.bin = d.at("bin").get<int>();
-  o.cache_mb = d.at("cache_mb").get<size_t>();
-  core::require(o.downscale >= 1, "config: data.downscale must be >= 1");
-  core::require(o.bin >= 1, "config: data.bin must be >= 1");
-  core::require(o.band_min_nm <= o.band_max_nm, "config: data.band_min_nm > data.band_max_nm");
-  return o;
-}
-
-torch::Tensor background(const json& config, int64_t bands) {
-  const json& b = config.at("model").at("background");
-  if (b.is_number()) return torch::full({bands}, b.get<float>());
-  auto values = b.get<std::vector<float>>();
-  if (int64_t(values.size()) != bands)
-    throw core::Error("config: model.background has " + std::to_string(values.size()) +
-                      " values but the scene has " + std::to_string(bands) + " bands");
-  return torch::tensor(values);
-}
-
 }  // namespace ddhgs::train

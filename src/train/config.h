@@ -12,8 +12,6 @@
 #include <string>
 #include <vector>
 
-#include "io/scene/scene.h"
-
 namespace ddhgs::train {
 
 // 2: schedule keys are fractions of `iterations` (train/schedule.h). A file
@@ -48,9 +46,5 @@ void set_key(nlohmann::json& config, const std::string& key_path, const std::str
 
 // "key.path=value" -> set_key.
 void apply_assignment(nlohmann::json& config, const std::string& assignment);
-
-io::LoadOptions load_options(const nlohmann::json& config);
-// The background colour for N bands: model.background as one number or N numbers.
-torch::Tensor background(const nlohmann::json& config, int64_t bands);
 
 }  // namespace ddhgs::train

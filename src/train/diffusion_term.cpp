@@ -16,57 +16,7 @@ namespace {
 
 const char* const kArchiveKey = "denoiser";
 
-template <typename T>
-T read_key(const json& section, const char* key, const std::string& where) {
-  try {
-    return section.at(key).get<T>();
-  } catch (const json::exception&) {
-    throw core::Error(where + ": diffusion." + key + " is missing or has the wrong type");
-  }
-}
-
 }  // namespace
-
-DiffusionTermOptions diffusion_term_options(const json& config, int64_t bands,
-                                            const std::string& where) {
-  DiffusionTermOptions o;
-  o.weight = config.at("loss").at("diffusion").get<double>();
-  const json& d = config.at("diffusion");
-  o.warmup = read_key<int64_t>(d, "warmup", where);
-  o.crop_px = read_key<int64_t>(d, "crop", where);
-  o.lr = read_key<double>(d, "lr", where);
-  o.condition_grad = read_key<bool>(d, "condition_grad", where);
-  o.condition_noise = read_key<double>(d, "condition_noise", where);
-  o.prediction =
-      model::parse_prediction(read_key<std::string>(d, "prediction", where), where + ": diffusion");
-  o.min_snr_gamma = read_key<double>(d, "min_snr_gamma", where);
-  o.finetune_steps = read_key<int64_t>(d, "finetune_steps", where);
-  o.finetune_batch = read_key<int64_t>(d, "finetune_batch", where);
-  o.finetune_crop = read_key<int64_t>(d, "finetune_crop", where);
-  o.finetune_cache_mb = read_key<int64_t>(d, "finetune_cache_mb", where);
-  o.unet = model::unet_options_from_json(d, where + ": diffusion");
-  o.unet.bands = bands;
-  o.schedule_steps = read_key<int64_t>(d, "steps", where);
-  o.schedule = model::parse_beta_schedule(read_key<std::string>(d, "schedule", where),
-                                          where + ": diffusion");
-  o.beta_start = read_key<double>(d, "beta_start", where);
-  o.beta_end = read_key<double>(d, "beta_end", where);
-  o.sampler.steps = read_key<int64_t>(d, "sampler_steps", where);
-  o.sampler.start_strength = read_key<double>(d, "start_strength", where);
-  o.sampler.eta = read_key<double>(d, "eta", where);
-  o.sampler.samples = read_key<int64_t>(d, "sampler_samples", where);
-  o.sampler.seed = config.at("seed").get<uint64_t>();
-  core::require(o.weight >= 0, where + ": loss.diffusion must be >= 0");
-  core::require(o.warmup >= 0, where + ": diffusion.warmup must be >= 0");
-  core::require(o.lr > 0, where + ": diffusion.lr must be > 0");
-  core::require(o.condition_noise >= 0, where + ": diffusion.condition_noise must be >= 0");
-  core::require(o.finetune_steps >= 0, where + ": diffusion.finetune_steps must be >= 0");
-  core::require(o.finetune_batch >= 1, where + ": diffusion.finetune_batch must be >= 1");
-  core::require(o.finetune_cache_mb >= 0, where + ": diffusion.finetune_cache_mb must be >= 0");
-  core::require(o.schedule_steps >= 1, where + ": diffusion.steps must be >= 1");
-  o.sampler.validate(o.schedule_steps, where + ": diffusion");
-  return o;
-}
 
 DiffusionTerm::DiffusionTerm(const DiffusionTermOptions& options, uint64_t init_seed)
     : options_(options), denoiser_(std::make_shared<model::Denoiser>()) {

@@ -5,7 +5,8 @@
 // on one random crop shared by the render and the ground truth. Gradients
 // reach the U-Net (its own Adam groups and learning rate, see
 // Trainer::add_module) and, through the condition X_3DGS, the Gaussians.
-// Config: loss.diffusion (w4) and the "diffusion" section of the preset.
+// Config: loss.diffusion (w4) and the "diffusion" section of the preset,
+// parsed into DiffusionTermOptions by train/run_config.h.
 #pragma once
 #include <torch/torch.h>
 #include <nlohmann/json.hpp>
@@ -56,11 +57,6 @@ struct DiffusionTermOptions {
 
   bool enabled() const { return weight > 0; }
 };
-
-// Reads loss.diffusion and the "diffusion" section of a resolved config.
-// Throws core::Error naming `where` on bad values.
-DiffusionTermOptions diffusion_term_options(const nlohmann::json& config, int64_t bands,
-                                            const std::string& where);
 
 // Holds the denoiser being trained; the trainer registers unet() as a module
 // and appends loss_term().

@@ -94,12 +94,8 @@ double psnr(const torch::Tensor& render, const torch::Tensor& target) {
   return 10.0 * std::log10(1.0 / std::max(mse, 1e-12));
 }
 
-LossTerm spectral_term(const nlohmann::json& loss_config) {
-  SpectralLossOptions options;
-  options.alpha = loss_config.at("spectral_alpha").get<double>();
-  options.beta = loss_config.at("spectral_beta").get<double>();
-  options.temperature = loss_config.at("spectral_temperature").get<double>();
-  return {"spectral", loss_config.at("spectral").get<double>(),
+LossTerm spectral_term(double weight, const SpectralLossOptions& options) {
+  return {"spectral", weight,
           [options](const LossInputs& in) { return spectral_loss(in.render, in.target, options); }};
 }
 

@@ -2,13 +2,14 @@
 // spectral loss, the diffusion term) join by appending a term.
 #pragma once
 #include <torch/torch.h>
-#include <nlohmann/json.hpp>
 
 #include <cstdint>
 #include <functional>
 #include <map>
 #include <string>
 #include <vector>
+
+#include "train/spectral_loss.h"
 
 namespace ddhgs::train {
 
@@ -49,10 +50,9 @@ torch::Tensor dssim_loss(const torch::Tensor& render, const torch::Tensor& targe
 // which needs a target that does not require a gradient.
 std::vector<LossTerm> baseline_losses(double l1_weight, double dssim_weight);
 
-// The DD-HGS spectral term "spectral" (train/spectral_loss.h), weighted by
-// loss.spectral, with loss.spectral_alpha, loss.spectral_beta and
-// loss.spectral_temperature from the same config object.
-LossTerm spectral_term(const nlohmann::json& loss_config);
+// The DD-HGS spectral term "spectral" (train/spectral_loss.h) with its weight
+// (loss.spectral) and options.
+LossTerm spectral_term(double weight, const SpectralLossOptions& options);
 
 // 10 log10(1 / MSE) over all elements, data range 1 (dB). Reads the two
 // tensors in place when they are contiguous float32 (no temporaries).

@@ -102,6 +102,18 @@ nlohmann::json read_run_config(const RunPaths& run) {
   return config;
 }
 
+void rewind_to_gaussian_end(const RunPaths& run, int64_t iterations, const nlohmann::json& config) {
+  const fs::path at_end = run.checkpoint_at(iterations);
+  if (!fs::exists(at_end))
+    throw core::Error(at_end, "missing: the run cannot go back to the end of its " +
+                                  std::to_string(iterations) + " Gaussian iterations");
+  io::write_atomically(run.checkpoint(), [&](const fs::path& tmp) {
+    fs::copy_file(at_end, tmp, fs::copy_options::overwrite_existing);
+  });
+  fs::remove(run.summary());
+  io::write_file_atomically(run.config(), config.dump(2) + "\n");
+}
+
 MetricsLog::MetricsLog(const fs::path& path, int64_t keep_until) : path_(path) {
   std::string kept;
   if (keep_until >= 0 && fs::exists(path)) {

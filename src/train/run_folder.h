@@ -69,6 +69,14 @@ bool is_unstarted_run(const RunPaths& run);
 // Reads and validates RUN/config.json (format_version, keys, types).
 nlohmann::json read_run_config(const RunPaths& run);
 
+// Rewinds a run that trained past its Gaussian iterations (into the
+// denoiser's fine-tuning) to their end: RUN/checkpoint.pt becomes a copy of
+// the checkpoint kept at `iterations`, train_summary.json goes (the run is
+// unfinished again) and config.json becomes `config`. Used by --resume with
+// new --iterations and by ablations whose rows differ only in the
+// fine-tuning. core::Error naming the checkpoint when it is missing.
+void rewind_to_gaussian_end(const RunPaths& run, int64_t iterations, const nlohmann::json& config);
+
 // Appends JSON lines, each with one write(2) so a crash loses at most one and
 // a full disk is reported as such.
 class MetricsLog {

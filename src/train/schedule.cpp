@@ -3,9 +3,9 @@
 #include <cmath>
 #include <string>
 
-namespace ddhgs::train {
+#include "train/run_config.h"
 
-using nlohmann::json;
+namespace ddhgs::train {
 
 namespace {
 
@@ -20,19 +20,16 @@ int64_t interval(double fraction, int64_t iterations) {
 
 }  // namespace
 
-Schedule schedule_from_config(const json& config) {
+Schedule schedule_of(const RunConfig& config) {
   Schedule s;
-  s.iterations = config.at("iterations").get<int64_t>();
-  const json& model = config.at("model");
-  const json& densify = config.at("densify");
-  s.sh_degree_every = interval(model.at("sh_degree_every_fraction").get<double>(), s.iterations);
-  s.means_lr_decay_steps =
-      interval(config.at("optim").at("means_lr_decay_fraction").get<double>(), s.iterations);
-  s.densify_from = of_run(densify.at("from_fraction").get<double>(), s.iterations);
-  s.densify_until = of_run(densify.at("until_fraction").get<double>(), s.iterations);
-  s.densify_every = densify.at("every").get<int64_t>();
-  s.opacity_reset_every =
-      interval(densify.at("opacity_reset_every_fraction").get<double>(), s.iterations);
+  s.iterations = config.iterations;
+  const DensifyConfig& densify = config.densify;
+  s.sh_degree_every = interval(config.model.sh_degree_every_fraction, s.iterations);
+  s.means_lr_decay_steps = interval(config.optim.means_lr_decay_fraction, s.iterations);
+  s.densify_from = of_run(densify.from_fraction, s.iterations);
+  s.densify_until = of_run(densify.until_fraction, s.iterations);
+  s.densify_every = densify.every;
+  s.opacity_reset_every = interval(densify.opacity_reset_every_fraction, s.iterations);
   return s;
 }
 

@@ -6,8 +6,6 @@
 // it is the window over which view-space gradients are averaged, which
 // depends on how many views it spans, not on the run's length.
 #pragma once
-#include <nlohmann/json.hpp>
-
 #include <cstdint>
 
 namespace ddhgs::train {
@@ -24,8 +22,10 @@ struct Schedule {
   bool densifies(int64_t iteration) const { return iteration < densify_until; }
 };
 
-// The schedule of a resolved config: round(fraction x iterations), and at
+struct RunConfig;
+
+// The schedule of a run's config: round(fraction x iterations), and at
 // least 1 for the intervals whose fraction is above zero.
-Schedule schedule_from_config(const nlohmann::json& config);
+Schedule schedule_of(const RunConfig& config);
 
 }  // namespace ddhgs::train

@@ -61,17 +61,6 @@ constexpr uint64_t kTermStream = uint64_t(1) << 40;
 // The denoiser U-Net's initial weights (beyond every iteration's term stream).
 constexpr uint64_t kDenoiserInitStream = uint64_t(1) << 41;
 
-model::DensifyOptions densify_options(const json& d) {
-  model::DensifyOptions o;
-  o.grad_threshold = d.at("grad_threshold").get<double>();
-  o.percent_dense = d.at("percent_dense").get<double>();
-  o.min_opacity = d.at("min_opacity").get<double>();
-  o.max_screen_px = d.at("max_screen_px").get<double>();
-  o.max_world_fraction = d.at("max_world_fraction").get<double>();
-  o.max_gaussians = d.at("max_gaussians").get<int64_t>();
-  return o;
-}
-
 // " (0.99, 0.98, 1.00)", or the range for many bands.
 std::string describe_values(const torch::Tensor& values) {  // [N]
   char text[96];
@@ -109,64 +98,54 @@ int Trainer::stop_signal() {
   return g_stop_signal;
 }
 
-Trainer::Trainer(json config, RunPaths run)
-    : config_(std::move(config)), run_(std::move(run)), schedule_(schedule_from_config(config_)) {}
+Trainer::Trainer(RunConfig config, RunPaths run)
+    : config_(std::move(config)), run_(std::move(run)), schedule_(schedule_of(config_)) {}
 
 void Trainer::load_scene() {
-  fs::path data = config_.at("data").at("path").get<std::string>();
+  const fs::path& data = config_.data.path;
   core::require(!data.empty(), run_.config(), "data.path is empty: no dataset to train on");
-  scene_ = io::load_scene(data, load_options(config_));
+  scene_ = io::load_scene(data, config_.data.load);
   io::log_scene_messages(*scene_);
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   check_scene_before_training(*scene_);
-  background_ = background(config_, scene_->bands());
-  if (config_.at("model").at("background_from_views").get<bool>()) {
+  background_ = background(config_.model, scene_->bands());
+  if (config_.model.background_from_views) {
     background_ = border_colour(*scene_, scene_->train);
     core::log_info("background starts from the training views' border colour" +
                    describe_values(background_));
   }
   extent_ = scene_extent(*scene_, scene_->train);
-  const json& loss = config_.at("loss");
-  losses_ = baseline_losses(loss.at("l1").get<double>(), loss.at("dssim").get<double>());
-  losses_.push_back(spectral_term(loss));
+  const LossConfig& loss = config_.loss;
+  losses_ = baseline_losses(loss.l1, loss.dssim);
+  losses_.push_back(spectral_term(loss.spectral, loss.spectral_options));
   build_modules();
 }
 
 void Trainer::build_modules() {
-  const json& we = config_.at("wavelength_encoder");
-  if (we.at("enabled").get<bool>()) {
-    model::WavelengthEncoderOptions o;
-    o.frequencies = we.at("frequencies").get<int>();
-    o.include_input = we.at("include_input").get<bool>();
-    o.hidden = we.at("hidden").get<int>();
-    o.layers = we.at("layers").get<int>();
-    o.output_scale = we.at("output_scale").get<double>();
-    const int degree = config_.at("model").at("sh_degree").get<int>();
-    o.sh_coeffs = (degree + 1) * (degree + 1);
+  const WavelengthEncoderConfig& we = config_.wavelength_encoder;
+  if (we.enabled) {
     // Its initial weights come from the run's seed (the last layer is zero).
-    torch::manual_seed(mix_seed(config_.at("seed").get<uint64_t>(), kEncoderInitStream));
-    encoder_ = model::WavelengthEncoder(o);
+    torch::manual_seed(mix_seed(config_.seed, kEncoderInitStream));
+    encoder_ = model::WavelengthEncoder(we.network);
     wavelengths01_ = model::normalise_wavelengths(scene_->wavelengths_nm);
-    add_module("wavelength_encoder", encoder_.ptr(), we.at("lr").get<double>());
+    add_module("wavelength_encoder", encoder_.ptr(), we.lr);
   }
-  if (config_.at("model").at("learn_background").get<bool>()) {
+  if (config_.model.learn_background) {
     // A constant backdrop is otherwise drawn by Gaussians wherever the
     // training views leave room, e.g. right in front of a held-out camera.
     background_module_ = std::make_shared<torch::nn::Module>();
     background_ = background_module_->register_parameter("value", background_.clone());
-    add_module("background", background_module_,
-               config_.at("optim").at("background_lr").get<double>());
+    add_module("background", background_module_, config_.optim.background_lr);
   }
-  const json& cameras = config_.at("camera_refinement");
-  if (cameras.at("enabled").get<bool>()) {
+  if (config_.camera_refinement.enabled) {
     camera_refinement_ = CameraRefinement(int64_t(scene_->views.size()), scene_->train);
     add_module("camera_refinement", camera_refinement_.ptr(),
-               cameras.at("rotation_lr").get<double>());
+               config_.camera_refinement.rotation_lr);
   }
-  const auto diffusion = diffusion_term_options(config_, scene_->bands(), "config");
+  const DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());
   if (diffusion.enabled()) {
-    diffusion_ = std::make_unique<DiffusionTerm>(
-        diffusion, mix_seed(config_.at("seed").get<uint64_t>(), kDenoiserInitStream));
+    diffusion_ =
+        std::make_unique<DiffusionTerm>(diffusion, mix_seed(config_.seed, kDenoiserInitStream));
     add_module("denoiser", diffusion_->denoiser().unet.ptr(), diffusion.lr);
     losses_.push_back(diffusion_->loss_term());
   }
@@ -185,7 +164,7 @@ torch::Tensor Trainer::band_offsets() {
 
 void Trainer::create_optimizer() {
   model::AdamOptions options;
-  options.eps = config_.at("optim").at("adam_eps").get<double>();
+  options.eps = config_.optim.adam_eps;
   state_.adam = model::Adam(options);
   auto tensors = state_.gaussians.tensors();
   for (size_t i = 0; i < tensors.size(); ++i)
@@ -194,20 +173,18 @@ void Trainer::create_optimizer() {
 }
 
 void Trainer::set_learning_rates(int64_t iteration) {
-  const json& o = config_.at("optim");
-  const double dc = o.at("sh_dc_lr").get<double>();
+  const OptimConfig& o = config_.optim;
   state_.adam.group("means").lr =
-      extent_ * model::exponential_lr(iteration, o.at("means_lr_init").get<double>(),
-                                      o.at("means_lr_final").get<double>(),
+      extent_ * model::exponential_lr(iteration, o.means_lr_init, o.means_lr_final,
                                       schedule_.means_lr_decay_steps);
-  state_.adam.group("log_scales").lr = o.at("scaling_lr").get<double>();
-  state_.adam.group("quats").lr = o.at("rotation_lr").get<double>();
-  state_.adam.group("logit_opacities").lr = o.at("opacity_lr").get<double>();
-  state_.adam.group("sh_dc").lr = dc;
-  state_.adam.group("sh_rest").lr = dc / o.at("sh_rest_lr_divisor").get<double>();
+  state_.adam.group("log_scales").lr = o.scaling_lr;
+  state_.adam.group("quats").lr = o.rotation_lr;
+  state_.adam.group("logit_opacities").lr = o.opacity_lr;
+  state_.adam.group("sh_dc").lr = o.sh_dc_lr;
+  state_.adam.group("sh_rest").lr = o.sh_dc_lr / o.sh_rest_lr_divisor;
   if (camera_refinement_)
     state_.adam.group("camera_refinement/translation").lr =
-        config_.at("camera_refinement").at("translation_lr").get<double>();
+        config_.camera_refinement.translation_lr;
 }
 
 render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor& sink,
@@ -220,23 +197,15 @@ render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor
 }
 
 std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run, bool replace) {
-  const std::vector<fs::path> inputs = {config.at("data").at("path").get<std::string>()};
+  RunConfig parsed = parse_run_config(config, "config");
+  const std::vector<fs::path> inputs = {parsed.data.path};
   RunWriter::check(run, replace, inputs);  // before the work of loading
-  std::unique_ptr<Trainer> t(new Trainer(config, run));
+  std::unique_ptr<Trainer> t(new Trainer(std::move(parsed), run));
   t->load_scene();  // before touching the output, so bad input leaves it intact
-  const json& init = config.at("init");
-  InitOptions options;
-  options.random = init.at("random").get<bool>();
-  options.random_points = init.at("random_points").get<int64_t>();
-  options.extra_random_per_pixel = init.at("extra_random_per_pixel").get<double>();
-  options.opacity = init.at("opacity").get<double>();
-  options.neighbours = init.at("neighbours").get<int>();
-  options.colour_views = init.at("colour_views").get<int>();
-  options.sh_degree = config.at("model").at("sh_degree").get<int>();
-  options.seed = mix_seed(config.at("seed").get<uint64_t>(), 0);
+  InitOptions options = t->config_.init;
+  options.seed = mix_seed(t->config_.seed, 0);
   t->state_.gaussians = initialise_gaussians(*t->scene_, options);
   t->state_.stats.reset(t->state_.gaussians.size());
-  t->state_.meta = {{"densify_added", 0}, {"densify_removed", 0}, {"seconds", 0.0}};
   t->create_optimizer();
   t->writer_ = RunWriter::create(run, config, replace, inputs);
   core::log_info("training " + std::to_string(t->state_.gaussians.size()) + " Gaussians x " +
@@ -255,11 +224,11 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
   json config = read_run_config(run);
   const int64_t trained = config.at("iterations").get<int64_t>();
   if (iterations > 0) config["iterations"] = iterations;
-  std::unique_ptr<Trainer> t(new Trainer(config, run));
+  std::unique_ptr<Trainer> t(new Trainer(parse_run_config(config, run.config().string()), run));
   t->writer_ = std::move(writer);
   t->load_scene();
   model::AdamOptions options;
-  options.eps = config.at("optim").at("adam_eps").get<double>();
+  options.eps = t->config_.optim.adam_eps;
   load_checkpoint(run.checkpoint(), t->state_, options);
   if (t->state_.gaussians.bands() != t->scene_->bands())
     throw core::Error(run.checkpoint(), "has " + std::to_string(t->state_.gaussians.bands()) +
@@ -268,19 +237,17 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
   if (iterations > 0 && t->state_.iteration > trained) {
     // Past the Gaussian iterations (the denoiser was being fine-tuned): go
     // back to their end; the fine-tuning runs again after the new total.
-    const fs::path at_end = run.checkpoint_at(trained);
-    if (!fs::exists(at_end))
-      throw core::Error(run.checkpoint(), "is past the Gaussian iterations and " +
-                                              at_end.filename().string() +
-                                              " is missing; resume without --iterations");
-    core::log_info("continuing from the end of the Gaussian iterations (" + at_end.string() +
+    rewind_to_gaussian_end(run, trained, config);
+    core::log_info("continuing from the end of the Gaussian iterations (" +
+                   run.checkpoint_at(trained).string() +
                    "); the denoiser is fine-tuned again afterwards");
     auto modules = t->state_.modules;
     t->state_ = TrainState();
     t->state_.modules = modules;
-    load_checkpoint(at_end, t->state_, options);
+    load_checkpoint(run.checkpoint(), t->state_, options);
+  } else if (iterations > 0) {
+    io::write_file_atomically(run.config(), config.dump(2) + "\n");
   }
-  if (iterations > 0) io::write_file_atomically(run.config(), config.dump(2) + "\n");
   core::log_info("resuming " + run.root.string() + " at iteration " +
                  std::to_string(t->state_.iteration));
   return t;
@@ -290,13 +257,13 @@ int Trainer::view_for(int64_t iteration) const {
   // A fresh permutation of the training views every epoch, seeded by epoch.
   const int64_t n = int64_t(scene_->train.size());
   const int64_t epoch = (iteration - 1) / n, position = (iteration - 1) % n;
-  auto generator = at::make_generator<at::CPUGeneratorImpl>(
-      mix_seed(config_.at("seed").get<uint64_t>(), uint64_t(2 * epoch + 1)));
+  auto generator =
+      at::make_generator<at::CPUGeneratorImpl>(mix_seed(config_.seed, uint64_t(2 * epoch + 1)));
   auto order = torch::randperm(n, generator, torch::kInt64);
   return scene_->train[size_t(order[position].item<int64_t>())];
 }
 
-void Trainer::step(int64_t iteration, json& record) {
+json Trainer::step(int64_t iteration) {
   core::StageScope step_scope("step (other)");
   set_learning_rates(iteration);
   auto& g = state_.gaussians;
@@ -323,9 +290,8 @@ void Trainer::step(int64_t iteration, json& record) {
   LossValues loss;
   {
     core::StageScope stage("losses (other)");
-    loss = evaluate_losses(
-        losses_, {out.image, target, view, iteration,
-                  mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration))});
+    loss = evaluate_losses(losses_, {out.image, target, view, iteration,
+                                     mix_seed(config_.seed, kTermStream + uint64_t(iteration))});
   }
   {
     core::StageScope stage("backward (other)");
@@ -348,15 +314,14 @@ void Trainer::step(int64_t iteration, json& record) {
     core::StageScope stage("densify");
     const int64_t reset_every = schedule_.opacity_reset_every;
     if (iteration > schedule_.densify_from && every(iteration, schedule_.densify_every)) {
-      auto generator = at::make_generator<at::CPUGeneratorImpl>(
-          mix_seed(config_.at("seed").get<uint64_t>(), uint64_t(2 * iteration)));
+      auto generator =
+          at::make_generator<at::CPUGeneratorImpl>(mix_seed(config_.seed, uint64_t(2 * iteration)));
       const int64_t before = g.size();
-      auto r = model::densify_and_prune(g, state_.adam, state_.stats,
-                                        densify_options(config_.at("densify")), extent_,
-                                        reset_every > 0 && iteration > reset_every, generator);
-      state_.meta["densify_added"] =
-          state_.meta["densify_added"].get<int64_t>() + r.cloned + r.split;
-      state_.meta["densify_removed"] = state_.meta["densify_removed"].get<int64_t>() + r.pruned;
+      auto r =
+          model::densify_and_prune(g, state_.adam, state_.stats, config_.densify.thresholds,
+                                   extent_, reset_every > 0 && iteration > reset_every, generator);
+      state_.counters.densify_added += r.cloned + r.split;
+      state_.counters.densify_removed += r.pruned;
       core::log_debug("densify at " + std::to_string(iteration) + ": " + std::to_string(before) +
                       " -> " + std::to_string(g.size()));
     }
@@ -364,79 +329,36 @@ void Trainer::step(int64_t iteration, json& record) {
   }
 
   core::StageScope stage("metrics");
-  record = {{"iter", iteration}, {"loss", loss.total.item<double>()}};
+  json record = {{"iter", iteration}, {"loss", loss.total.item<double>()}};
   for (const auto& [name, value] : loss.terms) record[name] = value;
   record["train_psnr"] = psnr(out.image, target);
   record["num_gaussians"] = g.size();
-  record["densify_added"] = state_.meta["densify_added"];
-  record["densify_removed"] = state_.meta["densify_removed"];
+  record["densify_added"] = state_.counters.densify_added;
+  record["densify_removed"] = state_.counters.densify_removed;
+  return record;
 }
 
 json Trainer::advance() {
-  json record;
   const int64_t iteration = state_.iteration + 1;
-  step(iteration, record);
+  json record = step(iteration);
   state_.iteration = iteration;
   return record;
 }
 
 int64_t Trainer::total_steps() const {
-  const int64_t iterations = config_.at("iterations").get<int64_t>();
-  return iterations + (diffusion_ ? diffusion_->options().finetune_steps : 0);
+  return config_.iterations + (diffusion_ ? diffusion_->options().finetune_steps : 0);
 }
 
-void Trainer::finetune_step(int64_t iteration, json& record) {
-  const int64_t iterations = config_.at("iterations").get<int64_t>();
-  const DiffusionTermOptions& options = diffusion_->options();
-  auto render = [&](int v) {
-    torch::NoGradGuard no_grad;
-    return render_training_view(v, {}).image;
-  };
-  if (!finetune_cache_checked_) {
-    finetune_cache_checked_ = true;
-    double bytes = 0;
-    for (int v : scene_->train) {
-      const auto& in = scene_->views[v].camera.intrinsics;
-      bytes += double(in.width) * double(in.height) * double(scene_->bands()) * sizeof(float);
-    }
-    const bool cache = bytes <= double(options.finetune_cache_mb) * 1024.0 * 1024.0;
-    core::log_info("denoiser fine-tuning (Gaussians frozen from here on): " +
-                   std::string(cache ? "rendering the training views once"
-                                     : "the training views' renders exceed the cache budget, "
-                                       "rendering them as they are drawn"));
-    if (cache)
-      for (int v : scene_->train) finetune_renders_.push_back(render(v));
-  }
-  const double lr = finetune_lr(options.lr, iteration - iterations - 1, options.finetune_steps);
-  for (auto& group : state_.adam.groups())
-    if (group.name.rfind("denoiser/", 0) == 0) group.lr = lr;
-  const uint64_t seed =
-      mix_seed(config_.at("seed").get<uint64_t>(), kTermStream + uint64_t(iteration));
-  const FinetuneLosses losses = finetune_losses(
-      diffusion_->denoiser(), options, scene_->train.size(),
-      [&](size_t i) {
-        const int v = scene_->train[i];
-        return std::make_pair(finetune_renders_.empty() ? render(v) : finetune_renders_[i],
-                              scene_->image(v));
-      },
-      seed);
-  const torch::Tensor& loss = losses.loss;
-  const torch::Tensor& identity = losses.identity;
-  loss.backward();
-  state_.adam.step();
-  state_.adam.zero_grad();
-  auto average = [](double& avg, double value) {
-    avg = avg < 0 ? value : 0.99 * avg + 0.01 * value;
-  };
-  average(finetune_loss_avg_, loss.item<double>());
-  average(finetune_identity_avg_, identity.item<double>());
-  record = {{"iter", iteration},
-            {"phase", "denoiser"},
-            {"diffusion", loss.item<double>()},
-            {"diffusion_identity", identity.item<double>()},
-            {"diffusion_avg", finetune_loss_avg_},
-            {"diffusion_identity_avg", finetune_identity_avg_},
-            {"denoiser_lr", lr}};
+json Trainer::finetune_step(int64_t iteration) {
+  if (!finetuning_)
+    finetuning_ = std::make_unique<DenoiserFinetuning>(*diffusion_, *scene_, [this](int v) {
+      torch::NoGradGuard no_grad;
+      return render_training_view(v, {}).image;
+    });
+  json record = finetuning_->step(iteration - config_.iterations - 1, state_.adam,
+                                  mix_seed(config_.seed, kTermStream + uint64_t(iteration)));
+  record["iter"] = iteration;
+  return record;
 }
 
 void Trainer::save(bool numbered) {
@@ -477,11 +399,12 @@ void Trainer::write_outputs(double seconds) {
   }
   io::write_gaussian_ply(run_.gaussians(),
                          model::to_ply(state_.gaussians, scene_->wavelengths_nm, offsets));
-  const int64_t iterations = config_.at("iterations").get<int64_t>();
+  const int64_t iterations = config_.iterations;
   const int degree = state_.gaussians.max_sh_degree();
   // Time of the Gaussian iterations alone (the denoiser's fine-tuning after
-  // them is reported apart); older checkpoints did not record it.
-  const double gaussian_seconds = state_.meta.value("gaussian_seconds", seconds);
+  // them is reported apart).
+  const double gaussian_seconds =
+      state_.counters.gaussian_seconds >= 0 ? state_.counters.gaussian_seconds : seconds;
   json summary = {
       {"iterations", iterations},
       {"seconds", seconds},
@@ -491,8 +414,8 @@ void Trainer::write_outputs(double seconds) {
       {"sh_degree", degree},
       {"bytes_per_gaussian", model::training_bytes_per_gaussian(scene_->bands(), degree)},
       {"peak_rss_mib", peak_rss_mib()},
-      {"densify_added", state_.meta["densify_added"]},
-      {"densify_removed", state_.meta["densify_removed"]}};
+      {"densify_added", state_.counters.densify_added},
+      {"densify_removed", state_.counters.densify_removed}};
   if (offsets.defined()) {
     // How far the encoder moved the SH coefficients, to judge its effect.
     summary["wavelength_offsets_abs_max"] = offsets.abs().max().item<double>();
@@ -504,7 +427,7 @@ void Trainer::write_outputs(double seconds) {
   }
   summary.update(test_psnr());
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
-  if (background_module_ || config_.at("model").at("background_from_views").get<bool>()) {
+  if (background_module_ || config_.model.background_from_views) {
     // eval, render and report take it from here (config.json stays as the
     // run was configured, so the run can be reproduced from it).
     auto values = background_.detach().contiguous();
@@ -528,31 +451,26 @@ TrainStatus Trainer::run() {
 }
 
 TrainStatus Trainer::run_steps() {
-  const int64_t iterations = config_.at("iterations").get<int64_t>();
+  const int64_t iterations = config_.iterations;
   const int64_t total = total_steps();
-  const json& output = config_.at("output");
-  const int64_t log_every = output.at("log_every").get<int64_t>();
-  const int64_t checkpoint_every = output.at("checkpoint_every").get<int64_t>();
+  const int64_t log_every = config_.output.log_every;
+  const int64_t checkpoint_every = config_.output.checkpoint_every;
   MetricsLog metrics(run_.metrics(), state_.iteration);
   StopSignalGuard guard;
   g_stop = false;
   g_stop_signal = 0;
-  const double seconds_before = state_.meta.value("seconds", 0.0);
+  const double seconds_before = state_.counters.seconds;
   const auto start = std::chrono::steady_clock::now();
   auto elapsed = [&] {
     return seconds_before +
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  // A run resumed at the end of its Gaussian iterations by a version that
-  // did not record their time.
-  if (state_.iteration >= iterations && !state_.meta.contains("gaussian_seconds"))
-    state_.meta["gaussian_seconds"] = seconds_before;
   core::ProgressBar bar("train", total);
   bar.update(state_.iteration);
   json record;
   while (state_.iteration < total) {
     if (g_stop) {
-      state_.meta["seconds"] = elapsed();
+      state_.counters.seconds = elapsed();
       save(false);
       bar.finish("interrupted");
       core::log_info("interrupted at iteration " + std::to_string(state_.iteration) +
@@ -562,14 +480,11 @@ TrainStatus Trainer::run_steps() {
     }
     const int64_t iteration = state_.iteration + 1;
     const bool finetuning = iteration > iterations;
-    if (finetuning)
-      finetune_step(iteration, record);
-    else
-      step(iteration, record);
+    record = finetuning ? finetune_step(iteration) : step(iteration);
     require_finite_record(record, run_.root);
     state_.iteration = iteration;
     // The Gaussians' share of the time, for seconds per iteration.
-    if (iteration == iterations) state_.meta["gaussian_seconds"] = elapsed();
+    if (iteration == iterations) state_.counters.gaussian_seconds = elapsed();
     if (every(iteration, log_every) || iteration == total || iteration == 1 ||
         iteration == iterations + 1) {
       record["seconds"] = elapsed();
@@ -588,16 +503,16 @@ TrainStatus Trainer::run_steps() {
     // The end of the Gaussian iterations is always kept when the fine-tuning
     // follows: resuming with more iterations starts again from there.
     if ((every(iteration, checkpoint_every) || iteration == iterations) && iteration < total) {
-      state_.meta["seconds"] = elapsed();
+      state_.counters.seconds = elapsed();
       save(true);
     }
   }
-  state_.meta["seconds"] = elapsed();
+  state_.counters.seconds = elapsed();
   // The step's reusable buffers (SH gradients, images: about 1.3 GB at 100k
   // Gaussians, 141 bands, 640x512) are not needed by the outputs below.
   core::pool_release_idle();
   save(true);
-  write_outputs(state_.meta["seconds"].get<double>());
+  write_outputs(state_.counters.seconds);
   bar.finish();
   return TrainStatus::Finished;
 }

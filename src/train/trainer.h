@@ -18,8 +18,10 @@
 #include "model/wavelength_encoder.h"
 #include "train/camera_refinement.h"
 #include "train/checkpoint.h"
+#include "train/denoiser_finetuning.h"
 #include "train/diffusion_term.h"
 #include "train/losses.h"
+#include "train/run_config.h"
 #include "train/run_folder.h"
 #include "train/schedule.h"
 
@@ -63,13 +65,13 @@ class Trainer {
   torch::Tensor band_offsets();
   TrainState& state() { return state_; }
   const io::Scene& scene() const { return *scene_; }
-  const nlohmann::json& config() const { return config_; }
+  const RunConfig& config() const { return config_; }
   double extent() const { return extent_; }
 
   static void request_stop();
 
  private:
-  Trainer(nlohmann::json config, RunPaths run);
+  Trainer(RunConfig config, RunPaths run);
   void load_scene();
   // The networks beside the Gaussians, from the config (both start and resume).
   void build_modules();
@@ -80,19 +82,19 @@ class Trainer {
   // render::rasterize; rest_step receives the SH rest gradient in blocks.
   render::RenderOutput render_training_view(int view, const torch::Tensor& sink,
                                             const render::ShRestSink& rest_step = {});
-  void step(int64_t iteration, nlohmann::json& record);
+  // One Gaussian iteration (1-based); returns its metrics record.
+  nlohmann::json step(int64_t iteration);
   // Gaussian iterations plus the denoiser's fine-tuning steps, if any.
   int64_t total_steps() const;
-  // One denoiser-only step after the joint iterations (DiffusionTermOptions::
-  // finetune_steps); renders the training views once, on the first call.
-  void finetune_step(int64_t iteration, nlohmann::json& record);
+  // One denoiser-only step after the Gaussian iterations (DenoiserFinetuning).
+  nlohmann::json finetune_step(int64_t iteration);
   TrainStatus run_steps();
   void save(bool numbered);
   void write_outputs(double seconds);
   // Mean PSNR (dB) of the held-out views, against noisy and clean ground truth.
   nlohmann::json test_psnr();
 
-  nlohmann::json config_;
+  RunConfig config_;
   RunPaths run_;
   Schedule schedule_;  // from config_ (resume with new iterations rebuilds the trainer)
   std::unique_ptr<io::Scene> scene_;
@@ -101,17 +103,10 @@ class Trainer {
   torch::Tensor background_;  // [N]
   double extent_ = 1;
   model::WavelengthEncoder encoder_{nullptr};
-  CameraRefinement camera_refinement_{nullptr};  // camera_refinement.enabled
-  std::unique_ptr<DiffusionTerm> diffusion_;     // loss.diffusion > 0
-  torch::Tensor wavelengths01_;                  // [N] the encoder's input
-  // The frozen Gaussians' renders of the training views for the fine-tuning,
-  // made on its first step when they fit diffusion.finetune_cache_mb; otherwise each
-  // step renders the views it draws.
-  std::vector<torch::Tensor> finetune_renders_;
-  bool finetune_cache_checked_ = false;
-  // Moving averages (over ~100 steps) of the fine-tuning loss and of the
-  // loss of returning the render unchanged, for metrics.jsonl; < 0 unset.
-  double finetune_loss_avg_ = -1, finetune_identity_avg_ = -1;
+  CameraRefinement camera_refinement_{nullptr};     // camera_refinement.enabled
+  std::unique_ptr<DiffusionTerm> diffusion_;        // loss.diffusion > 0
+  torch::Tensor wavelengths01_;                     // [N] the encoder's input
+  std::unique_ptr<DenoiserFinetuning> finetuning_;  // made on its first step
   // Holds background_ as a trained parameter when model.learn_background is on.
   std::shared_ptr<torch::nn::Module> background_module_;
   std::unique_ptr<RunWriter> writer_;

@@ -34,7 +34,7 @@ train::TrainState make_state() {
   s.stats.reset(4);
   s.stats.grad_sum = torch::rand({4});
   s.iteration = 123;
-  s.meta = {{"densify_added", 5}};
+  s.counters = {5, 2, 12.5, 10.25};
   return s;
 }
 
@@ -57,7 +57,10 @@ TEST(Checkpoint, RoundTripRestoresEverything) {
   train::load_checkpoint(dir / "c.pt", r, {});
   EXPECT_EQ(r.iteration, 123);
   EXPECT_EQ(r.gaussians.active_sh_degree, 2);
-  EXPECT_EQ(r.meta["densify_added"], 5);
+  EXPECT_EQ(r.counters.densify_added, 5);
+  EXPECT_EQ(r.counters.densify_removed, 2);
+  EXPECT_EQ(r.counters.seconds, 12.5);
+  EXPECT_EQ(r.counters.gaussian_seconds, 10.25);
   auto a = s.gaussians.values(), b = r.gaussians.values();
   for (size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(torch::equal(a[i], b[i])) << i;
   for (const auto& g : s.adam.groups()) {

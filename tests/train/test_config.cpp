@@ -6,6 +6,7 @@
 #include "support/error_text.h"
 #include "support/test_support.h"
 #include "train/config.h"
+#include "train/run_config.h"
 #include "train/run_folder.h"
 
 using namespace ddhgs;
@@ -88,8 +89,9 @@ TEST(Config, SetOverridesOneKeyWithTypeChecks) {
   train::apply_assignment(c, "optim.sh_dc_lr=1");  // an integer is a valid number
   EXPECT_DOUBLE_EQ(c["optim"]["sh_dc_lr"].get<double>(), 1.0);
   train::apply_assignment(c, "model.background=[0.1, 0.2, 0.3]");
-  EXPECT_TRUE(torch::allclose(train::background(c, 3), torch::tensor({0.1f, 0.2f, 0.3f})));
-  EXPECT_THROW(train::background(c, 4), core::Error);
+  const train::ModelConfig model = train::parse_run_config(c, "test").model;
+  EXPECT_TRUE(torch::allclose(train::background(model, 3), torch::tensor({0.1f, 0.2f, 0.3f})));
+  EXPECT_THROW(train::background(model, 4), core::Error);
   train::apply_assignment(c, "data.rgb=true");
   EXPECT_TRUE(c["data"]["rgb"].get<bool>());
   EXPECT_THROW(train::apply_assignment(c, "densify.nope=1"), core::Error);
@@ -105,13 +107,80 @@ TEST(Config, LoadOptionsMirrorTheDataSection) {
   train::apply_assignment(c, "data.downscale=4");
   train::apply_assignment(c, "data.band_min_nm=450");
   train::apply_assignment(c, "data.bin=2");
-  auto o = train::load_options(c);
+  auto o = train::parse_run_config(c, "test").data.load;
   EXPECT_EQ(o.downscale, 4);
   EXPECT_DOUBLE_EQ(o.band_min_nm, 450);
   EXPECT_EQ(o.bin, 2);
   EXPECT_THROW(train::apply_assignment(c, "data.downscale=0"), core::Error);
   c["data"]["downscale"] = 0;  // a config that skipped validation
-  EXPECT_THROW(train::load_options(c), core::Error);
+  EXPECT_THROW(train::parse_run_config(c, "test"), core::Error);
+}
+
+// Every section reaches its typed struct (a key parsed into the wrong field
+// shows as a mismatch), and the key lists that ablation leaves out of its
+// run comparison name keys of the schema.
+TEST(Config, RunConfigIsTheResolvedJsonTyped) {
+  auto c = train::load_preset("default");
+  for (const char* a : {"seed=11",
+                        "iterations=1234",
+                        "data.path=\"scenes/x\"",
+                        "data.downscale=3",
+                        "data.band_max_nm=900",
+                        "model.sh_degree=2",
+                        "model.learn_background=false",
+                        "init.random_points=777",
+                        "init.colour_views=5",
+                        "optim.means_lr_init=0.25",
+                        "optim.sh_rest_lr_divisor=7",
+                        "optim.adam_eps=1e-9",
+                        "loss.l1=0.6",
+                        "loss.dssim=0.4",
+                        "loss.spectral_temperature=0.75",
+                        "wavelength_encoder.hidden=33",
+                        "wavelength_encoder.lr=0.125",
+                        "camera_refinement.translation_lr=0.5",
+                        "diffusion.crop=48",
+                        "diffusion.sampler_steps=3",
+                        "densify.every=77",
+                        "densify.max_screen_px=31",
+                        "densify.max_gaussians=5000",
+                        "output.log_every=13",
+                        "output.checkpoint_every=222"})
+    train::apply_assignment(c, a);
+  const train::RunConfig r = train::parse_run_config(c, "test");
+  EXPECT_EQ(r.resolved, c);
+  EXPECT_EQ(r.seed, 11u);
+  EXPECT_EQ(r.iterations, 1234);
+  EXPECT_EQ(r.data.path, "scenes/x");
+  EXPECT_EQ(r.data.load.downscale, 3);
+  EXPECT_EQ(r.data.load.band_max_nm, 900);
+  EXPECT_EQ(r.model.sh_degree, 2);
+  EXPECT_FALSE(r.model.learn_background);
+  EXPECT_TRUE(r.model.background_from_views);
+  EXPECT_EQ(r.init.random_points, 777);
+  EXPECT_EQ(r.init.colour_views, 5);
+  EXPECT_EQ(r.init.sh_degree, 2);
+  EXPECT_EQ(r.init.seed, 11u);
+  EXPECT_EQ(r.optim.means_lr_init, 0.25);
+  EXPECT_EQ(r.optim.sh_rest_lr_divisor, 7);
+  EXPECT_EQ(r.optim.adam_eps, 1e-9);
+  EXPECT_EQ(r.loss.l1, 0.6);
+  EXPECT_EQ(r.loss.dssim, 0.4);
+  EXPECT_EQ(r.loss.spectral_options.temperature, 0.75);
+  EXPECT_EQ(r.wavelength_encoder.network.hidden, 33);
+  EXPECT_EQ(r.wavelength_encoder.network.sh_coeffs, 9);
+  EXPECT_EQ(r.wavelength_encoder.lr, 0.125);
+  EXPECT_EQ(r.camera_refinement.translation_lr, 0.5);
+  EXPECT_EQ(r.diffusion.crop_px, 48);
+  EXPECT_EQ(r.diffusion.sampler.steps, 3);
+  EXPECT_EQ(r.diffusion.sampler.seed, 11u);
+  EXPECT_EQ(r.densify.every, 77);
+  EXPECT_EQ(r.densify.thresholds.max_screen_px, 31);
+  EXPECT_EQ(r.densify.thresholds.max_gaussians, 5000);
+  EXPECT_EQ(r.output.log_every, 13);
+  EXPECT_EQ(r.output.checkpoint_every, 222);
+  for (const auto* keys : {&train::sampler_keys(), &train::finetune_keys()})
+    for (const std::string& key : *keys) EXPECT_TRUE(c["diffusion"].contains(key)) << key;
 }
 
 TEST(Config, ResolvedConfigMustBeComplete) {

@@ -12,6 +12,7 @@
 #include "support/test_support.h"
 #include "train/config.h"
 #include "train/diffusion_term.h"
+#include "train/run_config.h"
 
 namespace ddhgs {
 namespace {
@@ -51,7 +52,8 @@ torch::Tensor random_view(uint64_t seed, int64_t h, int64_t w, int64_t n,
 
 TEST(DiffusionTerm, OptionsComeFromLossDiffusionAndTheDiffusionSection) {
   auto config = train::load_preset("default");
-  EXPECT_EQ(train::diffusion_term_options(config, 7, "default").enabled(), false);
+  EXPECT_EQ(train::with_bands(train::parse_run_config(config, "default").diffusion, 7).enabled(),
+            false);
   train::set_key(config, "loss.diffusion", "0.3");
   train::set_key(config, "diffusion.crop", "24");
   train::set_key(config, "diffusion.schedule", "cosine");
@@ -60,7 +62,7 @@ TEST(DiffusionTerm, OptionsComeFromLossDiffusionAndTheDiffusionSection) {
   train::set_key(config, "diffusion.prediction", "\"residual\"");
   train::set_key(config, "diffusion.min_snr_gamma", "5");
   train::set_key(config, "seed", "9");
-  auto o = train::diffusion_term_options(config, 7, "default");
+  auto o = train::with_bands(train::parse_run_config(config, "default").diffusion, 7);
   EXPECT_EQ(o.prediction, model::Prediction::Residual);
   EXPECT_DOUBLE_EQ(o.min_snr_gamma, 5.0);
   EXPECT_EQ(DiffusionTerm(o, 1).denoiser().prediction, model::Prediction::Residual);
@@ -75,25 +77,28 @@ TEST(DiffusionTerm, OptionsComeFromLossDiffusionAndTheDiffusionSection) {
 
   auto bad = config;
   train::set_key(bad, "diffusion.schedule", "quadratic");
-  EXPECT_NE(error_of([&] { train::diffusion_term_options(bad, 7, "preset.json"); }).find("cosine"),
+  EXPECT_NE(error_of([&] {
+              train::with_bands(train::parse_run_config(bad, "preset.json").diffusion, 7);
+            }).find("cosine"),
             std::string::npos);
   bad = config;
   train::set_key(bad, "diffusion.prediction", "\"x0\"");
   EXPECT_NE(error_of([&] {
-              train::diffusion_term_options(bad, 7, "preset.json");
+              train::with_bands(train::parse_run_config(bad, "preset.json").diffusion, 7);
             }).find("preset.json: diffusion: prediction must be"),
             std::string::npos);
   bad = config;
   train::set_key(bad, "diffusion.start_strength", "0");
   EXPECT_NE(error_of([&] {
-              train::diffusion_term_options(bad, 7, "preset.json");
+              train::with_bands(train::parse_run_config(bad, "preset.json").diffusion, 7);
             }).find("preset.json: diffusion: start strength"),
             std::string::npos);
   bad = config;
   train::set_key(bad, "diffusion.lr", "-1");
-  EXPECT_NE(
-      error_of([&] { train::diffusion_term_options(bad, 7, "preset.json"); }).find("diffusion.lr"),
-      std::string::npos);
+  EXPECT_NE(error_of([&] {
+              train::with_bands(train::parse_run_config(bad, "preset.json").diffusion, 7);
+            }).find("diffusion.lr"),
+            std::string::npos);
 }
 
 TEST(DiffusionTerm, ZeroDuringWarmupThenSeededByTheIteration) {
@@ -185,13 +190,13 @@ TEST(DiffusionFinetune, OptionsAndLearningRateSchedule) {
   train::set_key(config, "diffusion.finetune_steps", "250");
   train::set_key(config, "diffusion.finetune_batch", "3");
   train::set_key(config, "diffusion.finetune_crop", "32");
-  auto o = train::diffusion_term_options(config, 4, "default");
+  auto o = train::with_bands(train::parse_run_config(config, "default").diffusion, 4);
   EXPECT_EQ(o.finetune_steps, 250);
   EXPECT_EQ(o.finetune_batch, 3);
   EXPECT_EQ(o.finetune_crop, 32);
   train::set_key(config, "diffusion.finetune_batch", "0");
   EXPECT_NE(error_of([&] {
-              train::diffusion_term_options(config, 4, "preset.json");
+              train::with_bands(train::parse_run_config(config, "preset.json").diffusion, 4);
             }).find("preset.json: diffusion.finetune_batch must be >= 1"),
             std::string::npos);
 

@@ -7,6 +7,7 @@
 #include "support/error_text.h"
 #include "support/test_support.h"
 #include "train/config.h"
+#include "train/run_config.h"
 #include "train/run_folder.h"
 #include "train/schedule.h"
 
@@ -16,7 +17,7 @@ using nlohmann::json;
 TEST(Schedule, FractionsBecomeIterationNumbersOfTheRun) {
   json c = train::load_preset("demo");
   ASSERT_EQ(c["iterations"], 3000);
-  train::Schedule s = train::schedule_from_config(c);
+  train::Schedule s = train::schedule_of(train::parse_run_config(c, "test"));
   // The demo preset keeps the iteration numbers it had before fractions.
   EXPECT_EQ(s.sh_degree_every, 300);
   EXPECT_EQ(s.means_lr_decay_steps, 3000);
@@ -26,7 +27,7 @@ TEST(Schedule, FractionsBecomeIterationNumbersOfTheRun) {
   EXPECT_EQ(s.opacity_reset_every, 1000);
   // ... and scales with the run: 2/3 of 900 is 600, 1/15 of 900 is 60.
   c["iterations"] = 900;
-  s = train::schedule_from_config(c);
+  s = train::schedule_of(train::parse_run_config(c, "test"));
   EXPECT_EQ(s.densify_until, 600);
   EXPECT_EQ(s.densify_from, 60);
   EXPECT_EQ(s.opacity_reset_every, 300);
@@ -38,7 +39,7 @@ TEST(Schedule, FractionsBecomeIterationNumbersOfTheRun) {
   c["iterations"] = 4;
   c["model"]["sh_degree_every_fraction"] = 0.1;
   c["densify"]["opacity_reset_every_fraction"] = 0.0;
-  s = train::schedule_from_config(c);
+  s = train::schedule_of(train::parse_run_config(c, "test"));
   EXPECT_EQ(s.sh_degree_every, 1);
   EXPECT_EQ(s.opacity_reset_every, 0);
 }

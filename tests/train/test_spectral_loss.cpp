@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include "core/error.h"
+#include "train/config.h"
 #include "train/losses.h"
+#include "train/run_config.h"
 #include "train/spectral_loss.h"
 
 using ddhgs::train::spectral_loss;
@@ -87,11 +89,13 @@ TEST(SpectralLoss, RejectsMismatchedShapes) {
 }
 
 TEST(SpectralLoss, TrainingTermReadsItsConfigKeys) {
-  nlohmann::json loss = {{"spectral", 0.1},
+  nlohmann::json config = ddhgs::train::load_preset("default");
+  config["loss"].update({{"spectral", 0.1},
                          {"spectral_alpha", 0.3},
                          {"spectral_beta", 0.9},
-                         {"spectral_temperature", 0.5}};
-  auto term = ddhgs::train::spectral_term(loss);
+                         {"spectral_temperature", 0.5}});
+  const auto loss = ddhgs::train::parse_run_config(config, "test").loss;
+  auto term = ddhgs::train::spectral_term(loss.spectral, loss.spectral_options);
   EXPECT_EQ(term.name, "spectral");
   EXPECT_DOUBLE_EQ(term.weight, 0.1);
   auto a = random_image(7, 3, 2, 5);

@@ -1,0 +1,115 @@
+// A run's configuration as typed values: one struct per section of
+// configs/default.json (the schema, train/config.h), parsed once from the
+// resolved JSON and passed to the code that uses it. Nothing outside
+// parse_run_config reads a training key from JSON.
+//
+// The JSON stays what a run folder keeps (config.json) and what runs are
+// compared by; the lists of keys that act only at evaluation or only in the
+// denoiser's fine-tuning (which ablation and run reuse leave out of that
+// comparison) live here too, beside the fields they name.
+#pragma once
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "io/scene/scene.h"
+#include "model/densify.h"
+#include "model/wavelength_encoder.h"
+#include "train/diffusion_term.h"
+#include "train/init.h"
+#include "train/spectral_loss.h"
+
+namespace ddhgs::train {
+
+struct DataConfig {
+  std::filesystem::path path;  // the dataset; empty in presets
+  io::LoadOptions load;        // downscale, rgb, band_min_nm, band_max_nm, bin, cache_mb
+};
+
+struct ModelConfig {
+  int sh_degree = 3;
+  double sh_degree_every_fraction = 0;  // of iterations (train/schedule.h)
+  // One value for every band, or one per band (checked against the scene's
+  // band count when the background is built: background()).
+  std::vector<float> background;
+  bool background_from_views = true;  // start from the training views' border colour
+  bool learn_background = true;       // the background is a trained parameter
+};
+
+struct OptimConfig {
+  double means_lr_init = 0, means_lr_final = 0;  // x scene extent
+  double means_lr_decay_fraction = 1;            // of iterations
+  double sh_dc_lr = 0;
+  double sh_rest_lr_divisor = 1;  // sh_rest learns at sh_dc_lr / this
+  double opacity_lr = 0, scaling_lr = 0, rotation_lr = 0;
+  double adam_eps = 1e-15;
+  double background_lr = 0;
+};
+
+struct LossConfig {
+  double l1 = 0, dssim = 0, spectral = 0;  // weights
+  SpectralLossOptions spectral_options;    // spectral_alpha, spectral_beta, spectral_temperature
+  // loss.diffusion is DiffusionTermOptions::weight (RunConfig::diffusion).
+};
+
+struct WavelengthEncoderConfig {
+  bool enabled = false;
+  model::WavelengthEncoderOptions network;  // sh_coeffs from model.sh_degree
+  double lr = 0;
+};
+
+struct CameraRefinementConfig {
+  bool enabled = false;
+  double rotation_lr = 0, translation_lr = 0;
+};
+
+struct DensifyConfig {
+  double from_fraction = 0, until_fraction = 0;  // of iterations
+  int64_t every = 100;                           // iterations
+  double opacity_reset_every_fraction = 0;       // of iterations; 0: never
+  model::DensifyOptions thresholds;              // grad_threshold ... max_gaussians
+};
+
+struct OutputConfig {
+  int64_t log_every = 10;  // iterations between metrics.jsonl records
+  int64_t checkpoint_every = 5000;
+};
+
+struct RunConfig {
+  nlohmann::json resolved;  // the JSON it was parsed from (what config.json holds)
+  uint64_t seed = 0;
+  int64_t iterations = 0;  // Gaussian iterations (the denoiser's fine-tuning follows)
+  DataConfig data;
+  ModelConfig model;
+  InitOptions init;  // sh_degree from model.sh_degree; seed is the run's (unmixed)
+  OptimConfig optim;
+  LossConfig loss;
+  WavelengthEncoderConfig wavelength_encoder;
+  CameraRefinementConfig camera_refinement;
+  // The "diffusion" section and loss.diffusion; unet.bands is 0 until
+  // with_bands() sets it from the data; sampler.seed is the run's seed.
+  DiffusionTermOptions diffusion;
+  DensifyConfig densify;
+  OutputConfig output;
+};
+
+// Validates (validate_config) and parses a resolved config read from
+// `source`; core::Error naming source and the key on a bad value.
+RunConfig parse_run_config(const nlohmann::json& config, const std::string& source);
+
+// The diffusion options for a scene of `bands` bands.
+DiffusionTermOptions with_bands(DiffusionTermOptions options, int64_t bands);
+
+// The background colour for N bands (model.background: one value or N).
+torch::Tensor background(const ModelConfig& model, int64_t bands);
+
+// Keys of the "diffusion" section that act only when a trained run is
+// evaluated or rendered (the sampler's), and those that act only after the
+// Gaussian iterations (the denoiser's fine-tuning).
+const std::vector<std::string>& sampler_keys();
+const std::vector<std::string>& finetune_keys();
+
+}  // namespace ddhgs::train
