@@ -19,7 +19,7 @@ done
 
 # colmap: `ddhgs process` runs it (structure from motion on pseudo-RGB views).
 packages=(build-essential cmake ninja-build pkg-config libtorch-dev libopenblas0-pthread
-          nlohmann-json3-dev libcli11-dev libstb-dev libtiff-dev libpng-dev
+          nlohmann-json3-dev libcli11-dev libstb-dev libtiff-dev libpng-dev libjpeg-dev
           libgtest-dev libbenchmark-dev colmap)
 if [ "$with_tests" = 1 ]; then
   # Independent cross-checks in tests: numpy for metrics and .npy files,

@@ -1,5 +1,6 @@
-// 8-bit PNG/JPEG through stb_image (the one translation unit holding its
-// implementation) and PNG writing through stb_image_write.
+// 8-bit PNG through stb_image (the one translation unit holding its
+// implementation), JPEG through libjpeg-turbo (io/image/jpeg.h), and PNG
+// writing through stb_image_write.
 #include "io/image/image.h"
 
 #include <limits>
@@ -8,6 +9,7 @@
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
 #include "io/files/byte_count.h"
+#include "io/image/jpeg.h"
 #include "io/image/stb_guards.h"
 
 #pragma GCC diagnostic push
@@ -16,7 +18,6 @@
 #pragma GCC diagnostic ignored "-Wunused-function"
 #define STB_IMAGE_IMPLEMENTATION
 #define STBI_ONLY_PNG
-#define STBI_ONLY_JPEG
 #include <stb_image.h>
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #include <stb_image_write.h>
@@ -47,6 +48,7 @@ void append_bytes(void* context, void* data, int size) {
 
 torch::Tensor read_image(const fs::path& path) {
   std::string bytes = load_bytes(path);
+  if (detail::is_jpeg(bytes)) return detail::decode_jpeg(path, bytes);
   detail::check_before_stb(path, bytes);
   int width = 0, height = 0, channels = 0;
   // The header's size decides the allocation: it must be one the data can fill.
@@ -102,14 +104,20 @@ CubeInfo probe_image(const fs::path& path) {
   if (fs::file_size(path, ec) == 0)
     throw core::Error(path, "empty file, expected a PNG or JPEG image");
   const std::string bytes = load_bytes(path);  // small: an 8-bit picture
+  CubeInfo info;
+  info.bands = 3;
+  info.type = SampleType::U8;
+  if (is_jpeg(bytes)) {
+    const JpegSize size = read_jpeg_size(path, bytes);
+    info.height = size.height, info.width = size.width;
+    return info;
+  }
   check_before_stb(path, bytes);
   int width = 0, height = 0, channels = 0;
   if (!stbi_info_from_memory(as_stbi(bytes), int(bytes.size()), &width, &height, &channels))
     throw core::Error(
         path, std::string("not a readable PNG or JPEG image (") + stbi_failure_reason() + ")");
-  CubeInfo info;
-  info.height = height, info.width = width, info.bands = 3;
-  info.type = SampleType::U8;
+  info.height = height, info.width = width;
   return info;
 }
 
