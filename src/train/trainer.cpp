@@ -5,6 +5,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <functional>
 
 #include "core/buffer_pool.h"
 #include "core/error.h"
@@ -467,47 +468,63 @@ TrainStatus Trainer::run_steps() {
   };
   core::ProgressBar bar("train", total);
   bar.update(state_.iteration);
-  json record;
-  while (state_.iteration < total) {
-    if (g_stop) {
-      state_.counters.seconds = elapsed();
-      save(false);
-      bar.finish("interrupted");
-      core::log_info("interrupted at iteration " + std::to_string(state_.iteration) +
-                     "; checkpoint saved. Continue with: ddhgs train --resume " +
-                     run_.root.string());
-      return TrainStatus::Interrupted;
+
+  // Runs one phase up to iteration `end` (the iteration counter runs on
+  // through both): each step's record is checked, logged and shown, and
+  // checkpoints are kept. False when a stop signal interrupted it.
+  using StepFn = std::function<json(int64_t)>;
+  using StatusFn = std::function<std::string(const json&)>;
+  auto run_phase = [&](int64_t end, const StepFn& step_of, const StatusFn& status_of) {
+    while (state_.iteration < end) {
+      if (g_stop) return false;
+      const int64_t iteration = state_.iteration + 1;
+      json record = step_of(iteration);
+      require_finite_record(record, run_.root);
+      state_.iteration = iteration;
+      // The Gaussians' share of the time, for seconds per iteration.
+      if (iteration == iterations) state_.counters.gaussian_seconds = elapsed();
+      // The first and last of the run and the first of the fine-tuning.
+      if (every(iteration, log_every) || iteration == total || iteration == 1 ||
+          iteration == iterations + 1) {
+        record["seconds"] = elapsed();
+        metrics.write(record);
+      }
+      bar.update(iteration, status_of(record));
+      // The end of the Gaussian iterations is always kept when the
+      // fine-tuning follows: resuming with more iterations starts there.
+      if ((every(iteration, checkpoint_every) || iteration == iterations) && iteration < total) {
+        state_.counters.seconds = elapsed();
+        save(true);
+      }
     }
-    const int64_t iteration = state_.iteration + 1;
-    const bool finetuning = iteration > iterations;
-    record = finetuning ? finetune_step(iteration) : step(iteration);
-    require_finite_record(record, run_.root);
-    state_.iteration = iteration;
-    // The Gaussians' share of the time, for seconds per iteration.
-    if (iteration == iterations) state_.counters.gaussian_seconds = elapsed();
-    if (every(iteration, log_every) || iteration == total || iteration == 1 ||
-        iteration == iterations + 1) {
-      record["seconds"] = elapsed();
-      metrics.write(record);
-    }
-    char status[160];
-    if (finetuning)
-      std::snprintf(status, sizeof status, "denoiser fine-tuning  loss %.4f (render as is %.4f)",
-                    record["diffusion_avg"].get<double>(),
-                    record["diffusion_identity_avg"].get<double>());
-    else
-      std::snprintf(status, sizeof status, "loss %.4f  psnr %.2f dB  G %lld",
-                    record["loss"].get<double>(), record["train_psnr"].get<double>(),
-                    (long long)record["num_gaussians"].get<int64_t>());
-    bar.update(iteration, status);
-    // The end of the Gaussian iterations is always kept when the fine-tuning
-    // follows: resuming with more iterations starts again from there.
-    if ((every(iteration, checkpoint_every) || iteration == iterations) && iteration < total) {
-      state_.counters.seconds = elapsed();
-      save(true);
-    }
-  }
+    return true;
+  };
+  auto gaussian_status = [](const json& record) {
+    char text[160];
+    std::snprintf(text, sizeof text, "loss %.4f  psnr %.2f dB  G %lld",
+                  record["loss"].get<double>(), record["train_psnr"].get<double>(),
+                  (long long)record["num_gaussians"].get<int64_t>());
+    return std::string(text);
+  };
+  auto finetune_status = [](const json& record) {
+    char text[160];
+    std::snprintf(text, sizeof text, "denoiser fine-tuning  loss %.4f (render as is %.4f)",
+                  record["diffusion_avg"].get<double>(),
+                  record["diffusion_identity_avg"].get<double>());
+    return std::string(text);
+  };
+  const bool finished = run_phase(
+                            iterations, [this](int64_t i) { return step(i); }, gaussian_status) &&
+                        run_phase(
+                            total, [this](int64_t i) { return finetune_step(i); }, finetune_status);
   state_.counters.seconds = elapsed();
+  if (!finished) {
+    save(false);
+    bar.finish("interrupted");
+    core::log_info("interrupted at iteration " + std::to_string(state_.iteration) +
+                   "; checkpoint saved. Continue with: ddhgs train --resume " + run_.root.string());
+    return TrainStatus::Interrupted;
+  }
   // The step's reusable buffers (SH gradients, images: about 1.3 GB at 100k
   // Gaussians, 141 bands, 640x512) are not needed by the outputs below.
   core::pool_release_idle();
