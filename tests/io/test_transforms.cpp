@@ -241,6 +241,14 @@ TEST(Transforms, MalformedFilesNameFileAndKey) {
              kMatrix + "}]}");
   expect_error(p, {"frames[0]", "missing key \"w\""});
 
+  // A size too large for an int (the fuzzer's find) is refused, not converted.
+  write_text(
+      p,
+      std::string(
+          R"({"fl_x": 100, "w": 5.5e20, "h": 30, "frames": [{"file_path": "a.png", "transform_matrix": )") +
+          kMatrix + "}]}");
+  expect_error(p, {"frames[0]", "at most 1048576"});
+
   write_text(p, "{" + intr + R"("frames": [{"transform_matrix": )" + kMatrix + "}]}");
   expect_error(p, {"frames[0]", "file_path"});
 

@@ -109,8 +109,9 @@ core::Intrinsics read_intrinsics(const Reader& in, const json& frame, const json
 
   core::Intrinsics k;
   double w = required("w"), h = required("h");
-  if (w < 1 || h < 1 || w != std::floor(w) || h != std::floor(h))
-    in.fail(where, "w and h must be positive whole numbers of pixels");
+  // At most 2^20 pixels a side, as the camera JSON and COLMAP readers allow.
+  if (w < 1 || h < 1 || w != std::floor(w) || h != std::floor(h) || w > 1 << 20 || h > 1 << 20)
+    in.fail(where, "w and h must be positive whole numbers of pixels, at most 1048576");
   k.width = int(w);
   k.height = int(h);
   k.fx = required("fl_x");
