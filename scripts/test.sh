@@ -4,8 +4,9 @@
 # AddressSanitizer/UBSan and their fuzzer (scripts/sanitize.sh, about 5
 # minutes of the total; docs/reliability.md). Exit status is non-zero on any
 # failure, on any sanitizer report in the readers' tests, and on any skipped
-# test that tests/expected_skips.txt does not list; a fuzzer find is printed
-# with its input and fails only with FUZZ_STRICT=1. Arguments go to ctest.
+# test that tests/expected_skips.txt does not list, and on a fuzzer find
+# (printed with its input; FUZZ_STRICT=0 only reports it). Arguments go to
+# ctest.
 # Environment: BUILD_DIR (default build; the sanitizer build goes to
 # BUILD_DIR-sanitize), DDHGS_SKIP_SANITIZE=1 leaves out the sanitizer and
 # fuzzing step (for quick local runs; CI never sets it), and the variables

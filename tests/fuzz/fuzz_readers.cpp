@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -26,7 +27,12 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
   // A RAM-backed folder where there is one: every input is written to a file.
   const std::filesystem::path base =
       access("/dev/shm", W_OK) == 0 ? "/dev/shm" : std::filesystem::temp_directory_path();
-  scratch() = base / ("ddhgs-fuzz-" + std::to_string(getpid()));
+  // A name of fixed length: the readers' path handling (string copies and
+  // their allocations) then takes the same branches in every run, so one
+  // seed gives one run.
+  char name[32];
+  std::snprintf(name, sizeof name, "ddhgs-fuzz-%010d", int(getpid()));
+  scratch() = base / name;
   std::filesystem::create_directories(scratch());
   // libFuzzer exits through exit() when its time is up; a crash keeps the
   // folder and the input in it.
