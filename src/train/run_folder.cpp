@@ -106,7 +106,9 @@ void rewind_to_gaussian_end(const RunPaths& run, int64_t iterations, const nlohm
   const fs::path at_end = run.checkpoint_at(iterations);
   if (!fs::exists(at_end))
     throw core::Error(at_end, "missing: the run cannot go back to the end of its " +
-                                  std::to_string(iterations) + " Gaussian iterations");
+                                  std::to_string(iterations) +
+                                  " Gaussian iterations (resume without --iterations to "
+                                  "finish it as configured)");
   io::write_atomically(run.checkpoint(), [&](const fs::path& tmp) {
     fs::copy_file(at_end, tmp, fs::copy_options::overwrite_existing);
   });

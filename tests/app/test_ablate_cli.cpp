@@ -97,6 +97,14 @@ TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
   const fs::path flat_straight = runs / "flat_straight";
   ASSERT_EQ(ddhgs(flat + " --iterations 60 --out " + flat_straight.string(), &out), 0) << out;
   ASSERT_EQ(ddhgs(flat + " --iterations 30 --out " + split.string(), &out), 0) << out;
+  // Without the checkpoint at the end of the Gaussian iterations there is
+  // nothing to go back to: one line naming it and how to finish the run.
+  const fs::path no_end = runs / "no_end";
+  fs::copy(split, no_end, fs::copy_options::recursive);
+  fs::remove(no_end / "checkpoints" / "ckpt_30.pt");
+  EXPECT_NE(ddhgs("train --resume " + no_end.string() + " --iterations 60", &out), 0);
+  EXPECT_NE(out.find("ckpt_30.pt: missing"), std::string::npos) << out;
+  EXPECT_NE(out.find("resume without --iterations"), std::string::npos) << out;
   ASSERT_EQ(ddhgs("train --resume " + split.string() + " --iterations 60", &out), 0) << out;
   EXPECT_NE(out.find("continuing from the end of the Gaussian iterations"), std::string::npos)
       << out;
