@@ -43,8 +43,9 @@ ModelConfig parse_model(const json& m, const std::string& source) {
   c.sh_degree = read<int>(m, "model", "sh_degree", source);
   c.sh_degree_every_fraction = read<double>(m, "model", "sh_degree_every_fraction", source);
   const json& b = m.at("background");
-  c.background = b.is_number() ? std::vector<float>{b.get<float>()}
-                               : read<std::vector<float>>(m, "model", "background", source);
+  c.background_per_band = !b.is_number();
+  c.background = c.background_per_band ? read<std::vector<float>>(m, "model", "background", source)
+                                       : std::vector<float>{b.get<float>()};
   c.background_from_views = read<bool>(m, "model", "background_from_views", source);
   c.learn_background = read<bool>(m, "model", "learn_background", source);
   return c;
@@ -206,7 +207,7 @@ DiffusionTermOptions with_bands(DiffusionTermOptions options, int64_t bands) {
 }
 
 torch::Tensor background(const ModelConfig& model, int64_t bands) {
-  if (model.background.size() == 1) return torch::full({bands}, model.background[0]);
+  if (!model.background_per_band) return torch::full({bands}, model.background[0]);
   if (int64_t(model.background.size()) != bands)
     throw core::Error("config: model.background has " + std::to_string(model.background.size()) +
                       " values but the scene has " + std::to_string(bands) + " bands");

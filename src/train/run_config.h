@@ -32,9 +32,10 @@ struct DataConfig {
 struct ModelConfig {
   int sh_degree = 3;
   double sh_degree_every_fraction = 0;  // of iterations (train/schedule.h)
-  // One value for every band, or one per band (checked against the scene's
-  // band count when the background is built: background()).
+  // One value for every band (background_per_band false, one element), or
+  // one per band (checked against the scene's band count: background()).
   std::vector<float> background;
+  bool background_per_band = false;   // model.background was a list
   bool background_from_views = true;  // start from the training views' border colour
   bool learn_background = true;       // the background is a trained parameter
 };

@@ -109,9 +109,7 @@ void rewind_to_gaussian_end(const RunPaths& run, int64_t iterations, const nlohm
                                   std::to_string(iterations) +
                                   " Gaussian iterations (resume without --iterations to "
                                   "finish it as configured)");
-  io::write_atomically(run.checkpoint(), [&](const fs::path& tmp) {
-    fs::copy_file(at_end, tmp, fs::copy_options::overwrite_existing);
-  });
+  io::copy_file_atomically(at_end, run.checkpoint());
   fs::remove(run.summary());
   io::write_file_atomically(run.config(), config.dump(2) + "\n");
 }

@@ -366,9 +366,7 @@ void Trainer::save(bool numbered) {
   require_finite_parameters(state_, run_.root);
   save_checkpoint(run_.checkpoint(), state_);
   if (numbered) {
-    io::write_atomically(run_.checkpoint_at(state_.iteration), [&](const fs::path& tmp) {
-      fs::copy_file(run_.checkpoint(), tmp, fs::copy_options::overwrite_existing);
-    });
+    io::copy_file_atomically(run_.checkpoint(), run_.checkpoint_at(state_.iteration));
   }
 }
 

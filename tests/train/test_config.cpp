@@ -92,6 +92,13 @@ TEST(Config, SetOverridesOneKeyWithTypeChecks) {
   const train::ModelConfig model = train::parse_run_config(c, "test").model;
   EXPECT_TRUE(torch::allclose(train::background(model, 3), torch::tensor({0.1f, 0.2f, 0.3f})));
   EXPECT_THROW(train::background(model, 4), core::Error);
+  // One number is every band's; a list of one is one band's.
+  train::apply_assignment(c, "model.background=0.5");
+  EXPECT_TRUE(torch::equal(train::background(train::parse_run_config(c, "test").model, 3),
+                           torch::full({3}, 0.5f)));
+  train::apply_assignment(c, "model.background=[0.5]");
+  EXPECT_THROW(train::background(train::parse_run_config(c, "test").model, 3), core::Error);
+  train::apply_assignment(c, "model.background=[0.1, 0.2, 0.3]");
   train::apply_assignment(c, "data.rgb=true");
   EXPECT_TRUE(c["data"]["rgb"].get<bool>());
   EXPECT_THROW(train::apply_assignment(c, "densify.nope=1"), core::Error);

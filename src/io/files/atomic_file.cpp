@@ -132,6 +132,12 @@ void write_file_atomically(const fs::path& path, const std::string& bytes) {
   write_parts_atomically(path, {std::string_view(bytes)});
 }
 
+void copy_file_atomically(const fs::path& from, const fs::path& to) {
+  write_atomically(to, [&](const fs::path& tmp) {
+    fs::copy_file(from, tmp, fs::copy_options::overwrite_existing);
+  });
+}
+
 std::string read_file(const fs::path& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw core::Error(path, "file not found");

@@ -49,6 +49,9 @@ void write_stream_atomically(const std::filesystem::path& path,
 // Convenience: atomically write a whole text or binary buffer.
 void write_file_atomically(const std::filesystem::path& path, const std::string& bytes);
 
+// Atomically replaces `to` with a copy of the file `from`.
+void copy_file_atomically(const std::filesystem::path& from, const std::filesystem::path& to);
+
 // Atomically writes the concatenation of parts (e.g. a header and a view of
 // tensor memory) without first joining them in memory.
 void write_parts_atomically(const std::filesystem::path& path,
