@@ -3,11 +3,13 @@
 #include <ATen/Parallel.h>
 #include <omp.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <memory>
 #include <vector>
 
+#include "render/aligned.h"
 #include "render/channel_kernels.h"
 #include "render/pair_grads.h"
 #include "render/ranked.h"
@@ -16,6 +18,17 @@
 
 namespace ddhgs::render {
 namespace {
+
+#if defined(__AVX512F__)
+std::atomic<bool> wide_on{true};
+bool wide() {
+  return wide_on.load(std::memory_order_relaxed);
+}
+#else
+bool wide() {
+  return false;
+}
+#endif
 
 constexpr int kPixels = kTileSize * kTileSize;
 constexpr int kChunk = 64;  // Gaussians per chunk: one bit each in a 64-bit pixel mask
@@ -40,7 +53,7 @@ struct TileScratch {
   const float* col_rows[kChunk];               // colour row of each chunk Gaussian
   float depth[kChunk];                         // camera z of each chunk Gaussian
   const float* pix_rows[kPixels];              // row of acc for each pixel
-  std::vector<float> acc;    // [kPixels, np] colour sums (forward) or dL/dimage (backward)
+  AlignedVector<float> acc;  // [kPixels, np] colour sums (forward) or dL/dimage (backward)
   uint8_t touched[kPixels];  // forward: acc row holds a sum (rows are not zeroed up front)
 
   void start(const TileBins& bins, int tile, int width, int height, int np) {
@@ -179,7 +192,59 @@ float depth_sum(uint64_t bits, const float* weight, const float* depth) {
   return part0 + part1;
 }
 
+// The backward's two colour terms of a chunk: dL/dcolours = W^T dL/dimage
+// into gcol ([V, np] in rank order) and each pair's colour . dL/dpixel into
+// the [k][p] table s.gdot. Two passes: Gaussian-major for the first, with
+// register accumulators, pixel-major for the second.
+void colour_terms(TileScratch& s, const int32_t* ranks, int m, int np, float* gcol) {
+  for (int k = 0; k < m; ++k) {
+    uint64_t any = 0;
+    for (const uint64_t word : s.gmask[k]) any |= word;
+    if (any)
+      kernels::mask_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows, np, s.gmask[k], kPixels / 64,
+                         s.weight + k * kPixels, 1);
+  }
+  for (int p = 0; p < kPixels; ++p) {
+    if (s.pmask[p] == 0) continue;
+    uint8_t gauss[kChunk];
+    const int c = pixel_gaussians(s, p, gauss);
+    float gdot[kChunk] = {};
+    kernels::gather_dot(s.pix_rows[p], s.col_rows, np, gauss, c, gdot);
+    for (int j = 0; j < c; ++j) s.gdot[gauss[j] * kPixels + p] = gdot[j];
+  }
+}
+
+#if defined(__AVX512F__)
+// colour_terms in one Gaussian-major pass of 512-bit vectors: each
+// Gaussian's colour row and gradient accumulators stay in registers while
+// its pixels' dL/dpixel rows stream past, each loaded once for both terms.
+void wide_colour_terms(TileScratch& s, const int32_t* ranks, int m, int np, float* gcol) {
+  for (int k = 0; k < m; ++k) {
+    uint64_t any = 0;
+    for (const uint64_t word : s.gmask[k]) any |= word;
+    if (any)
+      kernels::wide_colour_grads(gcol + int64_t(ranks[k]) * np, s.col_rows[k], s.pix_rows, np,
+                                 s.gmask[k], kPixels / 64, s.weight + k * kPixels,
+                                 s.gdot + k * kPixels);
+  }
+}
+#endif
+
 }  // namespace
+
+bool wide_kernels_built() {
+#if defined(__AVX512F__)
+  return true;
+#else
+  return false;
+#endif
+}
+
+void set_wide_kernels([[maybe_unused]] bool on) {
+#if defined(__AVX512F__)
+  wide_on.store(on, std::memory_order_relaxed);
+#endif
+}
 
 BlendForward blend_forward(const Projected& projected, const torch::Tensor& colors,
                            const torch::Tensor& background, const TileBins& bins, int width,
@@ -200,6 +265,7 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
   float* final_T = keep_final_T ? out.final_T.data_ptr<float>() : nullptr;
   const int lists = int(bins.thread_tiles.size());
   int64_t pairs = 0;
+  [[maybe_unused]] const bool use_wide = wide();
 
 #pragma omp parallel num_threads(lists) reduction(+ : pairs)
   for (int list = omp_get_thread_num(); list < lists; list += omp_get_num_threads()) {
@@ -219,8 +285,14 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
           const uint64_t bits = s.pmask[p];
           if (bits == 0) continue;
           pairs += __builtin_popcountll(bits);
-          kernels::mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, &bits, 1, s.weight + p,
-                             kPixels, s.touched[p]);
+#if defined(__AVX512F__)
+          if (use_wide)
+            kernels::wide_mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, &bits, 1,
+                                    s.weight + p, kPixels, s.touched[p]);
+          else
+#endif
+            kernels::mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, &bits, 1,
+                               s.weight + p, kPixels, s.touched[p]);
           s.touched[p] = 1;
           dsum[p] += depth_sum(bits, s.weight + p, s.depth);
         }
@@ -254,7 +326,8 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
   const Ranked& ranked = rank_gaussians(projected, colors, bins, np);
   // One gradient buffer set per tile list, in rank order; they are summed in
   // list order at the end, so results do not depend on OS scheduling.
-  thread_local std::vector<std::vector<float>> col_bufs, geo_bufs, bg_bufs;
+  thread_local std::vector<AlignedVector<float>> col_bufs;
+  thread_local std::vector<std::vector<float>> geo_bufs, bg_bufs;
   col_bufs.resize(lists), geo_bufs.resize(lists), bg_bufs.resize(lists);
   std::vector<float*> col_buf(lists), geo_buf(lists), bg_buf(lists);
   for (int l = 0; l < lists; ++l) {
@@ -270,6 +343,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
   const float* img = fwd.image.data_ptr<float>();
   const float* dep = fwd.depth.data_ptr<float>();
   const float* final_T = fwd.final_T.data_ptr<float>();
+  [[maybe_unused]] const bool use_wide = wide();
 
 #pragma omp parallel num_threads(lists)
   for (int list = omp_get_thread_num(); list < lists; list += omp_get_num_threads()) {
@@ -308,23 +382,12 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
         const int32_t* ranks = bins.ranks.data() + b;
         const int m = std::min<int32_t>(kChunk, end - b);
         blend_chunk(s, ranked, ranks, m, end - b, np, true, gcol);
-        // dL/dcolors = W^T dL/dimage, Gaussian-major with register accumulators.
-        for (int k = 0; k < m; ++k) {
-          uint64_t any = 0;
-          for (const uint64_t word : s.gmask[k]) any |= word;
-          if (any)
-            kernels::mask_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows, np, s.gmask[k],
-                               kPixels / 64, s.weight + k * kPixels, 1);
-        }
-        // dL/dweight of each pair, colour . dL/dpixel, into the [k][p] table.
-        for (int p = 0; p < kPixels; ++p) {
-          if (s.pmask[p] == 0) continue;
-          uint8_t gauss[kChunk];
-          const int c = pixel_gaussians(s, p, gauss);
-          float gdot[kChunk] = {};
-          kernels::gather_dot(s.pix_rows[p], s.col_rows, np, gauss, c, gdot);
-          for (int j = 0; j < c; ++j) s.gdot[gauss[j] * kPixels + p] = gdot[j];
-        }
+#if defined(__AVX512F__)
+        if (use_wide)
+          wide_colour_terms(s, ranks, m, np, gcol);
+        else
+#endif
+          colour_terms(s, ranks, m, np, gcol);
         uint64_t group_members[kGroups];
         for (int gr = 0; gr < kGroups; ++gr) {
           uint64_t members = 0;

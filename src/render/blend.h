@@ -18,6 +18,13 @@ struct BlendForward {
   int64_t pairs = 0;      // Gaussian-pixel pairs blended (alpha >= 1/255, not stopped)
 };
 
+// The blender's channel loops use 512-bit vectors (16 bands each) where the
+// build targets AVX-512 (DDHGS_NATIVE on such a CPU), 256-bit ones otherwise.
+// set_wide_kernels(false) selects the 256-bit loops in such a build, so that
+// tests check both against the same reference; it has no effect elsewhere.
+bool wide_kernels_built();
+void set_wide_kernels(bool on);
+
 // colors: [G, N] contiguous float32, background: [N] contiguous float32.
 BlendForward blend_forward(const Projected& projected, const torch::Tensor& colors,
                            const torch::Tensor& background, const TileBins& bins, int width,

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "render/aligned.h"
 #include "render/project.h"
 #include "render/splat_row.h"
 #include "render/tiles.h"
@@ -18,10 +19,10 @@ namespace ddhgs::render {
 // [G, N] costs ~8 % of a forward at N = 128) and otherwise copied into padded
 // rows in rank order.
 struct Ranked {
-  std::vector<Splat> splats;   // [V]
-  std::vector<float> padded;   // [V, np] when colours are copied
-  const float* rows;           // colour rows, np floats apart
-  const int32_t* row_of_rank;  // [V] row of each rank; null: row = rank
+  std::vector<Splat> splats;    // [V]
+  AlignedVector<float> padded;  // [V, np] when colours are copied
+  const float* rows;            // colour rows, np floats apart
+  const int32_t* row_of_rank;   // [V] row of each rank; null: row = rank
 
   const float* row(int32_t rank, int np) const {
     return rows + size_t(row_of_rank ? row_of_rank[rank] : rank) * np;
