@@ -218,15 +218,19 @@ void colour_terms(TileScratch& s, const int32_t* ranks, int m, int np, float* gc
 // colour_terms in one Gaussian-major pass of 512-bit vectors: each
 // Gaussian's colour row and gradient accumulators stay in registers while
 // its pixels' dL/dpixel rows stream past, each loaded once for both terms.
+// A quarter of the tile at a time (64 pixels, one mask word): its rows
+// (64 x 576 bytes at 141 bands) stay in the 48 KB L1 cache while every
+// Gaussian of the chunk passes over them; the whole tile's rows would be
+// read from L2 for each Gaussian (9 % more backward time, measured).
 void wide_colour_terms(TileScratch& s, const int32_t* ranks, int m, int np, float* gcol) {
-  for (int k = 0; k < m; ++k) {
-    uint64_t any = 0;
-    for (const uint64_t word : s.gmask[k]) any |= word;
-    if (any)
-      kernels::wide_colour_grads(gcol + int64_t(ranks[k]) * np, s.col_rows[k], s.pix_rows, np,
-                                 s.gmask[k], kPixels / 64, s.weight + k * kPixels,
-                                 s.gdot + k * kPixels);
-  }
+  for (int w = 0; w < kPixels / 64; ++w)
+    for (int k = 0; k < m; ++k) {
+      if (s.gmask[k][w] == 0) continue;
+      const int p0 = 64 * w;
+      kernels::wide_colour_grads(gcol + int64_t(ranks[k]) * np, s.col_rows[k], s.pix_rows + p0, np,
+                                 &s.gmask[k][w], 1, s.weight + k * kPixels + p0,
+                                 s.gdot + k * kPixels + p0);
+    }
 }
 #endif
 
