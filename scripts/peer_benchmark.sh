@@ -16,10 +16,12 @@
 # script and holds the runs. Nothing of OpenSplat enters this repository.
 #
 # Fairness: OpenSplat gets a COLMAP folder (under WORK) whose images/ holds
-# only the training views, already at the chosen downscale (the same JPEGs
-# ddhgs reads from images_<d>/; OpenSplat rescales the intrinsics itself), and
-# runs with -d 1; its model is written in the COLMAP frame (it undoes its own
+# only the training views at full resolution and runs with -d <downscale>,
+# its own way of training at a lower resolution (given images_<d>/ and -d 1
+# instead, it scaled its densification to the wrong image size and barely
+# densified); its model is written in the COLMAP frame (it undoes its own
 # centring and scaling) with the standard SH layout, which ddhgs reads as is.
+# Both are scored against the same images_<d>/ JPEGs.
 # The test views are the ones ddhgs withholds (Hyper-NeRF split), read from
 # ddhgs's own per-view metrics. ms/iteration is the whole command's wall time
 # over the iterations for both tools (loading and writing included); peak RSS
@@ -112,13 +114,13 @@ if [ "$with_ddhgs" = 1 ]; then
     "$(printf %.3f "$(json_value "$run/eval/metrics.json" "['ssim']")")"
 fi
 
-# --- OpenSplat's input: training views only, at this downscale ---
+# --- OpenSplat's input: training views only, full resolution ---
 peer_in="$work/opensplat-input"
 rm -rf "$peer_in"
 mkdir -p "$peer_in/images" "$peer_in/sparse/0"  # OpenSplat reads sparse/0, not colmap/sparse/0
 cp "$data/colmap/sparse/0/cameras.bin" "$data/colmap/sparse/0/points3D.bin" "$peer_in/sparse/0/"
 python3 - "$data/colmap/sparse/0/images.bin" "$peer_in/sparse/0/images.bin" \
-  "$data/$images" "$peer_in/images" "${test_views[@]}" <<'PY'
+  "$data/images" "$peer_in/images" "${test_views[@]}" <<'PY'
 # Copies images.bin without the test views, and links the training images.
 import os, struct, sys
 src, dst, image_dir, out_dir, *test = sys.argv[1:]
@@ -160,7 +162,7 @@ for variant in "${wanted[@]}"; do
   out="$work/opensplat-$variant-run"
   rm -rf "$out" && mkdir -p "$out"
   say "== OpenSplat ($variant) train"
-  (cd "$out" && timed "$work/opensplat-$variant.time" "$binary" "$peer_in" -n "$iterations" -d 1 \
+  (cd "$out" && timed "$work/opensplat-$variant.time" "$binary" "$peer_in" -n "$iterations" -d "$downscale" \
     -o "$out/splat.ply")
   # Evaluated with OpenSplat's fixed background.
   eval_run="$work/opensplat-$variant-eval"

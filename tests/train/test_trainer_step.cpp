@@ -196,8 +196,14 @@ TEST(TrainerStep, TwentyIterationsMatchTheLibTorchLosses) {
   for (int i = 1; i <= 20; ++i) {
     const auto a = fast->advance(), b = slow->advance();
     ASSERT_EQ(a["iter"], i);
+    // The runs differ by float rounding only (8.6e-7 relative in the first
+    // dssim), which Adam amplifies step by step: the largest relative
+    // difference over the 20 iterations measured 1.7e-5 with the 256-bit
+    // blend loops and 2.1e-5 with the 512-bit ones (both at iteration 16),
+    // so the bound is 5e-5; a real difference between the losses shows from
+    // the first iteration on, orders of magnitude above it.
     for (const char* key : {"loss", "l1", "dssim", "train_psnr"})
-      EXPECT_NEAR(a[key].get<double>(), b[key].get<double>(), 2e-5 * std::abs(b[key].get<double>()))
+      EXPECT_NEAR(a[key].get<double>(), b[key].get<double>(), 5e-5 * std::abs(b[key].get<double>()))
           << key << " at iteration " << i;
   }
   // Adam turns float-noise gradients (e.g. of the quaternions of round
