@@ -6,7 +6,7 @@
 #
 #   scripts/peer_benchmark.sh [--iterations 2000] [--downscale 4] [--seed 0]
 #       [--variants white,black] [--no-ddhgs] [--work DIR] [--ddhgs-args "--set k=v ..."]
-#       [--threads N]
+#       [--opensplat-args "--refine-every 100 ..."] [--threads N]
 #
 # Needs build/ddhgs, ../shared/data/basil and ../shared/peers ($DDHGS_SHARED_DIR
 # instead of ../shared when set; OpenSplat is
@@ -17,11 +17,12 @@
 #
 # Fairness: OpenSplat gets a COLMAP folder (under WORK) whose images/ holds
 # only the training views at full resolution and runs with -d <downscale>,
-# its own way of training at a lower resolution (given images_<d>/ and -d 1
-# instead, it scaled its densification to the wrong image size and barely
-# densified); its model is written in the COLMAP frame (it undoes its own
-# centring and scaling) with the standard SH layout, which ddhgs reads as is.
-# Both are scored against the same images_<d>/ JPEGs.
+# its own way of training at a lower resolution; its model is written in the
+# COLMAP frame (it undoes its own centring and scaling) with the standard SH
+# layout, which ddhgs reads as is. Both are scored against the same
+# images_<d>/ JPEGs. OpenSplat's defaults densify every 500 steps after step
+# 500 and before half the iterations: at 2,000 iterations, never; with
+# --opensplat-args "--refine-every 100" it densifies 4 times.
 # The test views are the ones ddhgs withholds (Hyper-NeRF split), read from
 # ddhgs's own per-view metrics. ms/iteration is the whole command's wall time
 # over the iterations for both tools (loading and writing included); peak RSS
@@ -31,6 +32,7 @@ set -euo pipefail
 
 repo="$(cd "$(dirname "$0")/.." && pwd)"
 iterations=2000 downscale=4 seed=0 variants=white work=/tmp/ddhgs-peer-benchmark ddhgs_args=""
+opensplat_args=""
 with_ddhgs=1 threads="$(nproc)"
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -40,9 +42,10 @@ while [ $# -gt 0 ]; do
     --variants) variants="$2"; shift 2 ;;
     --work) work="$2"; shift 2 ;;
     --ddhgs-args) ddhgs_args="$2"; shift 2 ;;
+    --opensplat-args) opensplat_args="$2"; shift 2 ;;
     --no-ddhgs) with_ddhgs=0; shift ;;
     --threads) threads="$2"; shift 2 ;;
-    -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,32p' "$0"; exit 0 ;;
     *) echo "peer_benchmark.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -162,15 +165,16 @@ for variant in "${wanted[@]}"; do
   out="$work/opensplat-$variant-run"
   rm -rf "$out" && mkdir -p "$out"
   say "== OpenSplat ($variant) train"
+  # shellcheck disable=SC2086  # the extra arguments are words on purpose
   (cd "$out" && timed "$work/opensplat-$variant.time" "$binary" "$peer_in" -n "$iterations" -d "$downscale" \
-    -o "$out/splat.ply")
+    $opensplat_args -o "$out/splat.ply")
   # Evaluated with OpenSplat's fixed background.
   eval_run="$work/opensplat-$variant-eval"
   holder "$eval_run" "$background"
   cp "$out/splat.ply" "$eval_run/gaussians.ply"
   "$ddhgs" --threads "$threads" -q eval "$eval_run" --fps-repeats 0 >>"$log" 2>&1
   wall="$(wall_s "$work/opensplat-$variant.time")"
-  row "OpenSplat ($variant background)" \
+  row "OpenSplat ($variant background${opensplat_args:+ $opensplat_args})" \
     "$(awk -v w="$wall" -v n="$iterations" 'BEGIN{printf "%.0f", 1000*w/n}')" \
     "$(rss_mib "$work/opensplat-$variant.time")" \
     "$(awk '/^element vertex/ {print $3; exit}' "$out/splat.ply")" \
