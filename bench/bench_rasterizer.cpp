@@ -4,7 +4,9 @@
 //   build/bench/bench_rasterizer [--quick | --only WIDTH HEIGHT G N]
 //
 // With DDHGS_BENCH_STAGES=1 it also prints CPU milliseconds of the forward's
-// stages (projection, binning, blending) next to the whole forward.
+// stages (projection, binning, blending) next to the whole forward. With
+// DDHGS_BENCH_NARROW=1 the blender uses its 256-bit loops even where it was
+// built with 512-bit ones (render::set_wide_kernels), to measure the AVX2 path.
 //
 // Per scene: forward and backward milliseconds (median of several runs, with
 // autograd, as training uses them), Gaussian-pixel pairs blended per second,
@@ -187,10 +189,16 @@ void run_scene(int width, int height, int64_t g, int64_t n, int reps, const Timi
 int main(int argc, char** argv) {
   const bool quick = argc > 1 && std::strcmp(argv[1], "--quick") == 0;
   const int threads = core::configure_threads();
+  const char* narrow = std::getenv("DDHGS_BENCH_NARROW");
+  if (narrow && std::strcmp(narrow, "1") == 0) render::set_wide_kernels(false);
   const Timing peak = mm_peak_gflops();
   std::printf(
-      "threads %d, torch::mm fp32 peak %.1f GFLOP/s per wall second, %.1f per CPU second\n\n",
-      threads, peak.wall, peak.cpu);
+      "threads %d, blend loops %s, torch::mm fp32 peak %.1f GFLOP/s per wall second, %.1f per "
+      "CPU second\n\n",
+      threads,
+      render::wide_kernels_built() && !(narrow && std::strcmp(narrow, "1") == 0) ? "512-bit"
+                                                                                 : "256-bit",
+      peak.wall, peak.cpu);
   std::printf(
       "| image | G | N | fwd ms | bwd ms | pairs (M) | pairs/s (M) | fwd GFLOP/s | fwd %% peak | "
       "fwd+bwd %% peak | fwd %% peak (CPU) | fwd+bwd %% peak (CPU) | peak RSS MiB |\n");

@@ -195,15 +195,16 @@ float depth_sum(uint64_t bits, const float* weight, const float* depth) {
 // The backward's two colour terms of a chunk: dL/dcolours = W^T dL/dimage
 // into gcol ([V, np] in rank order) and each pair's colour . dL/dpixel into
 // the [k][p] table s.gdot. Two passes: Gaussian-major for the first, with
-// register accumulators, pixel-major for the second.
+// register accumulators, a quarter of the tile at a time (as
+// wide_colour_terms below), and pixel-major for the second.
 void colour_terms(TileScratch& s, const int32_t* ranks, int m, int np, float* gcol) {
-  for (int k = 0; k < m; ++k) {
-    uint64_t any = 0;
-    for (const uint64_t word : s.gmask[k]) any |= word;
-    if (any)
-      kernels::mask_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows, np, s.gmask[k], kPixels / 64,
-                         s.weight + k * kPixels, 1);
-  }
+  for (int w = 0; w < kPixels / 64; ++w)
+    for (int k = 0; k < m; ++k) {
+      if (s.gmask[k][w] == 0) continue;
+      const int p0 = 64 * w;
+      kernels::mask_axpy(gcol + int64_t(ranks[k]) * np, s.pix_rows + p0, np, &s.gmask[k][w], 1,
+                         s.weight + k * kPixels + p0, 1);
+    }
   for (int p = 0; p < kPixels; ++p) {
     if (s.pmask[p] == 0) continue;
     uint8_t gauss[kChunk];
