@@ -189,16 +189,15 @@ void run_scene(int width, int height, int64_t g, int64_t n, int reps, const Timi
 int main(int argc, char** argv) {
   const bool quick = argc > 1 && std::strcmp(argv[1], "--quick") == 0;
   const int threads = core::configure_threads();
-  const char* narrow = std::getenv("DDHGS_BENCH_NARROW");
-  if (narrow && std::strcmp(narrow, "1") == 0) render::set_wide_kernels(false);
+  const char* narrow_env = std::getenv("DDHGS_BENCH_NARROW");
+  const bool narrow = narrow_env && std::strcmp(narrow_env, "1") == 0;
+  if (narrow) render::set_wide_kernels(false);
   const Timing peak = mm_peak_gflops();
   std::printf(
       "threads %d, blend loops %s, torch::mm fp32 peak %.1f GFLOP/s per wall second, %.1f per "
       "CPU second\n\n",
-      threads,
-      render::wide_kernels_built() && !(narrow && std::strcmp(narrow, "1") == 0) ? "512-bit"
-                                                                                 : "256-bit",
-      peak.wall, peak.cpu);
+      threads, render::wide_kernels_built() && !narrow ? "512-bit" : "256-bit", peak.wall,
+      peak.cpu);
   std::printf(
       "| image | G | N | fwd ms | bwd ms | pairs (M) | pairs/s (M) | fwd GFLOP/s | fwd %% peak | "
       "fwd+bwd %% peak | fwd %% peak (CPU) | fwd+bwd %% peak (CPU) | peak RSS MiB |\n");
