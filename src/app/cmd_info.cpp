@@ -1,6 +1,7 @@
 // `ddhgs info DIR`: what a dataset holds and what is wrong with it.
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 
@@ -28,6 +29,37 @@ std::string human_bytes(size_t bytes) {
   }
   char buf[32];
   std::snprintf(buf, sizeof buf, u == 0 ? "%.0f %s" : "%.1f %s", v, units[u]);
+  return buf;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// "views 14.4 deg apart (median; 12.0-16.9)" and how far the test views are
+// from the nearest training view: what the held-out views must interpolate.
+std::string spacing_line(const io::ViewSpacing& s) {
+  if (s.train_nearest_deg.empty()) return "fewer than 2 training views";
+  auto [lo, hi] = std::minmax_element(s.train_nearest_deg.begin(), s.train_nearest_deg.end());
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "training views %.1f deg from their nearest neighbour (median; %.1f-%.1f)",
+                median(s.train_nearest_deg), *lo, *hi);
+  std::string out = buf;
+  if (!s.test_nearest_deg.empty()) {
+    auto [tlo, thi] = std::minmax_element(s.test_nearest_deg.begin(), s.test_nearest_deg.end());
+    std::snprintf(buf, sizeof buf, "; test views %.1f-%.1f deg from the nearest training view",
+                  *tlo, *thi);
+    out += buf;
+  }
+  return out;
+}
+
+std::string fixed1(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f", v);
   return buf;
 }
 
@@ -61,6 +93,9 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r) {
   j["point_spectra"] = r.point_spectra;
   j["clean_views"] = r.clean_views;
   j["distorted_views"] = r.distorted_views;
+  j["fov_deg"] = {r.fov_x_deg, r.fov_y_deg};
+  j["train_nearest_view_deg"] = r.spacing.train_nearest_deg;
+  j["test_nearest_train_view_deg"] = r.spacing.test_nearest_deg;
   j["notes"] = scene.notes;
   j["warnings"] = scene.warnings;
   j["errors"] = r.errors;
@@ -101,7 +136,8 @@ void print_text(const io::Scene& scene, const io::SceneReport& r) {
       << (r.distorted_views ? std::to_string(r.distorted_views) +
                                   " views with lens distortion, undistorted to pinhole at load"
                             : std::string("pinhole"))
-      << "\n";
+      << ", field of view " << fixed1(r.fov_x_deg) << " x " << fixed1(r.fov_y_deg) << " deg\n"
+      << "spacing     " << spacing_line(r.spacing) << "\n";
   for (const auto& note : scene.notes) out << "  note: " << note << "\n";
   if (scene.warnings.empty() && r.errors.empty()) {
     out << "problems    none\n";

@@ -51,5 +51,23 @@ TEST(BasilCli, DefaultSettingsLearnTheRealCapture) {
   EXPECT_GT(summary["test_psnr"].get<double>(), 16.0) << summary.dump();
 }
 
+TEST(BasilCli, InfoShowsTheNarrowFieldAndTheTurntableSpacing) {
+  const fs::path data = basil();
+  if (!fs::exists(data / "transforms.json"))
+    GTEST_SKIP() << "the real Basil capture is absent (" << data.string() << ")";
+  std::string out;
+  ASSERT_EQ(test::run_command(test::ddhgs_binary() + " info " + data.string() + " --rgb", &out), 0)
+      << out;
+  // fx 4873 px over 696 px, fy 4563 px over 520 px.
+  EXPECT_NE(out.find("field of view 8.2 x 6.5 deg"), std::string::npos) << out;
+  // Two turntable rings of 25 stops, 14-15 degrees apart; frames 1, 25, 26
+  // and 50 nearly coincide (1.7 degrees); each test view is a full stop from
+  // its nearest training view.
+  EXPECT_NE(out.find("spacing     training views 14.0 deg from their nearest neighbour (median; "
+                     "1.7-15.2); test views 13.3-14.9 deg from the nearest training view"),
+            std::string::npos)
+      << out;
+}
+
 }  // namespace
 }  // namespace ddhgs

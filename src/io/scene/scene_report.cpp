@@ -1,6 +1,7 @@
 #include "io/scene/scene_report.h"
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 #include "core/error.h"
@@ -31,7 +32,37 @@ void probe_one(const Scene& scene, const fs::path& path, const core::Intrinsics&
   });
 }
 
+double degrees_between(const core::Vec3& a, const core::Vec3& b) {
+  // atan2 of |a x b| and a . b stays accurate for small angles (acos does not).
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+}
+
+// For each view of `from`, the smallest angle to a view of `to` other than itself.
+std::vector<double> nearest_angles(const Scene& scene, const std::vector<int>& from,
+                                   const std::vector<int>& to) {
+  std::vector<double> out;
+  for (int f : from) {
+    double best = -1;
+    for (int t : to) {
+      if (t == f) continue;
+      const double a =
+          degrees_between(scene.views[f].camera.forward(), scene.views[t].camera.forward());
+      if (best < 0 || a < best) best = a;
+    }
+    if (best >= 0) out.push_back(best);
+  }
+  return out;
+}
+
 }  // namespace
+
+ViewSpacing view_spacing(const Scene& scene) {
+  ViewSpacing s;
+  if (scene.train.size() >= 2)
+    s.train_nearest_deg = nearest_angles(scene, scene.train, scene.train);
+  if (!scene.train.empty()) s.test_nearest_deg = nearest_angles(scene, scene.test, scene.train);
+  return s;
+}
 
 SceneReport inspect_scene(const Scene& scene, int sample_reads) {
   SceneReport report;
@@ -39,6 +70,13 @@ SceneReport inspect_scene(const Scene& scene, int sample_reads) {
   const core::Intrinsics& first = scene.views.front().camera.intrinsics;
   report.width = first.width;
   report.height = first.height;
+  report.fov_x_deg =
+      (std::atan(first.cx / first.fx) + std::atan((first.width - first.cx) / first.fx)) * 180.0 /
+      M_PI;
+  report.fov_y_deg =
+      (std::atan(first.cy / first.fy) + std::atan((first.height - first.cy) / first.fy)) * 180.0 /
+      M_PI;
+  report.spacing = view_spacing(scene);
   size_t sample_bytes = bytes_per_sample(scene.stored_type);
   for (const View& v : scene.views) {
     const core::Intrinsics& k = v.camera.intrinsics;

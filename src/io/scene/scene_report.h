@@ -9,6 +9,17 @@
 
 namespace ddhgs::io {
 
+// How far apart the views look: the angle (degrees) between viewing
+// directions, for each training view to its nearest other training view and
+// for each test view to its nearest training view (in split order). Views
+// 10-15 degrees apart, as on a turntable with 25 stops, leave each held-out
+// view's appearance to be interpolated across that gap.
+struct ViewSpacing {
+  std::vector<double> train_nearest_deg;  // empty with fewer than 2 training views
+  std::vector<double> test_nearest_deg;   // empty without training views
+};
+ViewSpacing view_spacing(const Scene& scene);
+
 struct SceneReport {
   int width = 0, height = 0;  // pixels of the first view, as loaded
   bool mixed_sizes = false;   // views differ in size (several COLMAP cameras)
@@ -18,7 +29,9 @@ struct SceneReport {
   int clean_views = 0;
   int64_t points = 0;
   bool point_colors = false, point_spectra = false;
-  std::vector<std::string> errors;  // files that would fail to load
+  std::vector<std::string> errors;      // files that would fail to load
+  double fov_x_deg = 0, fov_y_deg = 0;  // first view's field of view
+  ViewSpacing spacing;
 };
 
 // Probes every view (and clean file) header for band counts and sizes, and
