@@ -102,6 +102,21 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r) {
   return j;
 }
 
+// "40, 400-700 nm"; RGB images list their three nominal wavelengths in
+// band order (R, G, B: descending), which a range would hide.
+std::string bands_text(const io::Scene& scene) {
+  const auto& w = scene.wavelengths_nm;
+  std::string out = std::to_string(scene.bands());
+  if (w.empty()) return out;
+  if (scene.options.rgb) {
+    out += " (the RGB images, at";
+    for (size_t i = 0; i < w.size(); ++i) out += (i ? ", " : " ") + nm(w[i]);
+    return out + " nm)";
+  }
+  auto [lo, hi] = std::minmax_element(w.begin(), w.end());
+  return out + ", " + nm(*lo) + "-" + nm(*hi) + " nm";
+}
+
 void print_text(const io::Scene& scene, const io::SceneReport& r) {
   std::ostream& out = std::cout;
   size_t f32_view = scene.view_bytes() / io::bytes_per_sample(scene.stored_type) * 4;
@@ -113,8 +128,7 @@ void print_text(const io::Scene& scene, const io::SceneReport& r) {
       << (scene.options.downscale > 1 ? " at downscale " + std::to_string(scene.options.downscale)
                                       : "")
       << "\n"
-      << "bands       " << scene.bands() << ", " << nm(scene.wavelengths_nm.front()) << "-"
-      << nm(scene.wavelengths_nm.back()) << " nm\n"
+      << "bands       " << bands_text(scene) << "\n"
       << "stored as   " << io::to_string(scene.stored_type) << " (divided by " << nm(scene.scale)
       << ")\n"
       << "memory      " << human_bytes(scene.view_bytes()) << " per view, "

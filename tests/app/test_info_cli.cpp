@@ -136,7 +136,7 @@ TEST(InfoCli, WarningsOnceAndTheRgbFlagForMissingCubes) {
   EXPECT_TRUE(contains(out, "none of the 6 hyperspectral cubes") && contains(out, "--rgb")) << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
   ASSERT_EQ(info(root.string() + " --rgb 2>&1", &out), 0) << out;
-  EXPECT_TRUE(contains(out, "bands       3")) << out;
+  EXPECT_TRUE(contains(out, "bands       3 (the RGB images, at 610, 550, 465 nm)\n")) << out;
   EXPECT_EQ(count(out, "non-orthonormal rotations"), 1u) << out;
 }
 
