@@ -32,35 +32,30 @@ std::string human_bytes(size_t bytes) {
   return buf;
 }
 
+std::string fixed1(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f", v);
+  return buf;
+}
+
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-// "views 14.4 deg apart (median; 12.0-16.9)" and how far the test views are
-// from the nearest training view: what the held-out views must interpolate.
+// "training views 14.0 deg from their nearest neighbour (median; 1.7-15.2);
+// test views 13.3-14.9 deg from the nearest training view": the gap the
+// held-out views must be interpolated across.
 std::string spacing_line(const io::ViewSpacing& s) {
   if (s.train_nearest_deg.empty()) return "fewer than 2 training views";
-  auto [lo, hi] = std::minmax_element(s.train_nearest_deg.begin(), s.train_nearest_deg.end());
-  char buf[200];
-  std::snprintf(buf, sizeof buf,
-                "training views %.1f deg from their nearest neighbour (median; %.1f-%.1f)",
-                median(s.train_nearest_deg), *lo, *hi);
-  std::string out = buf;
-  if (!s.test_nearest_deg.empty()) {
-    auto [tlo, thi] = std::minmax_element(s.test_nearest_deg.begin(), s.test_nearest_deg.end());
-    std::snprintf(buf, sizeof buf, "; test views %.1f-%.1f deg from the nearest training view",
-                  *tlo, *thi);
-    out += buf;
-  }
+  std::string out = "training views " + fixed1(median(s.train_nearest_deg)) +
+                    " deg from their nearest neighbour (median; " +
+                    io::degree_range(s.train_nearest_deg) + ")";
+  if (!s.test_nearest_deg.empty())
+    out += "; test views " + io::degree_range(s.test_nearest_deg) +
+           " deg from the nearest training view";
   return out;
-}
-
-std::string fixed1(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.1f", v);
-  return buf;
 }
 
 std::string nm(double v) {

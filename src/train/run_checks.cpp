@@ -1,6 +1,5 @@
 #include "train/run_checks.h"
 
-#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -74,16 +73,9 @@ void check_scene_before_training(const io::Scene& scene) {
                    "training without test metrics");
   // How far the test views are from what training sees: on a sparse capture
   // (Basil: 14 degrees) their PSNR stays well below the training views'.
-  const auto& near = report.spacing.test_nearest_deg;
-  if (!near.empty()) {
-    auto [lo, hi] = std::minmax_element(near.begin(), near.end());
-    char buf[160];
-    std::snprintf(buf, sizeof buf,
-                  "held-out views are %.1f-%.1f degrees from the nearest training view "
-                  "(ddhgs info: spacing)",
-                  *lo, *hi);
-    core::log_info(buf);
-  }
+  if (!report.spacing.test_nearest_deg.empty())
+    core::log_info("held-out views are " + io::degree_range(report.spacing.test_nearest_deg) +
+                   " degrees from the nearest training view (ddhgs info: spacing)");
 }
 
 void require_finite_record(const nlohmann::json& record, const fs::path& run) {

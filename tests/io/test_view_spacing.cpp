@@ -58,6 +58,12 @@ TEST(ViewSpacing, TwoRingsSeeTheElevationGap) {
   EXPECT_TRUE(s.test_nearest_deg.empty());
 }
 
+TEST(ViewSpacing, DegreeRangeIsTheSmallestAndLargestToOneDecimal) {
+  EXPECT_EQ(degree_range({14.96, 13.34, 14.0}), "13.3-15.0");
+  EXPECT_EQ(degree_range({1.7}), "1.7-1.7");
+  EXPECT_EQ(degree_range({}), "");
+}
+
 TEST(ViewSpacing, TooFewViewsGiveEmptyLists) {
   Scene one, only_test;
   ring(one, {0}, {});

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 
 #include "core/error.h"
@@ -37,16 +38,16 @@ double degrees_between(const core::Vec3& a, const core::Vec3& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
 }
 
-// For each view of `from`, the smallest angle to a view of `to` other than itself.
-std::vector<double> nearest_angles(const Scene& scene, const std::vector<int>& from,
-                                   const std::vector<int>& to) {
+// For each view of `from`, the smallest angle to a view of `to` other than
+// itself; forward[v] is view v's viewing direction.
+std::vector<double> nearest_angles(const std::vector<core::Vec3>& forward,
+                                   const std::vector<int>& from, const std::vector<int>& to) {
   std::vector<double> out;
   for (int f : from) {
     double best = -1;
     for (int t : to) {
       if (t == f) continue;
-      const double a =
-          degrees_between(scene.views[f].camera.forward(), scene.views[t].camera.forward());
+      const double a = degrees_between(forward[size_t(f)], forward[size_t(t)]);
       if (best < 0 || a < best) best = a;
     }
     if (best >= 0) out.push_back(best);
@@ -57,11 +58,21 @@ std::vector<double> nearest_angles(const Scene& scene, const std::vector<int>& f
 }  // namespace
 
 ViewSpacing view_spacing(const Scene& scene) {
+  std::vector<core::Vec3> forward;
+  for (const View& v : scene.views) forward.push_back(v.camera.forward());
   ViewSpacing s;
   if (scene.train.size() >= 2)
-    s.train_nearest_deg = nearest_angles(scene, scene.train, scene.train);
-  if (!scene.train.empty()) s.test_nearest_deg = nearest_angles(scene, scene.test, scene.train);
+    s.train_nearest_deg = nearest_angles(forward, scene.train, scene.train);
+  if (!scene.train.empty()) s.test_nearest_deg = nearest_angles(forward, scene.test, scene.train);
   return s;
+}
+
+std::string degree_range(const std::vector<double>& deg) {
+  if (deg.empty()) return "";
+  auto [lo, hi] = std::minmax_element(deg.begin(), deg.end());
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.1f-%.1f", *lo, *hi);
+  return buf;
 }
 
 SceneReport inspect_scene(const Scene& scene, int sample_reads) {

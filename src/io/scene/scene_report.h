@@ -19,6 +19,8 @@ struct ViewSpacing {
   std::vector<double> test_nearest_deg;   // empty without training views
 };
 ViewSpacing view_spacing(const Scene& scene);
+// "13.3-14.9": the smallest and largest angle, one decimal each; "" when empty.
+std::string degree_range(const std::vector<double>& deg);
 
 struct SceneReport {
   int width = 0, height = 0;  // pixels of the first view, as loaded
