@@ -14,8 +14,8 @@
 #include "eval/evaluate.h"
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
+#include "io/scene/backdrop.h"
 #include "model/densify.h"
-#include "train/background.h"
 #include "train/config.h"
 #include "train/init.h"
 #include "train/run_checks.h"
@@ -62,22 +62,6 @@ constexpr uint64_t kTermStream = uint64_t(1) << 40;
 // The denoiser U-Net's initial weights (beyond every iteration's term stream).
 constexpr uint64_t kDenoiserInitStream = uint64_t(1) << 41;
 
-// " (0.99, 0.98, 1.00)", or the range for many bands.
-std::string describe_values(const torch::Tensor& values) {  // [N]
-  char text[96];
-  if (values.numel() <= 4) {
-    std::string out = " (";
-    for (int64_t i = 0; i < values.numel(); ++i) {
-      std::snprintf(text, sizeof text, "%s%.3f", i ? ", " : "", values[i].item<double>());
-      out += text;
-    }
-    return out + ")";
-  }
-  std::snprintf(text, sizeof text, " (%.3f to %.3f over %lld bands)", values.min().item<double>(),
-                values.max().item<double>(), (long long)values.numel());
-  return text;
-}
-
 bool every(int64_t iteration, int64_t interval) {
   return interval > 0 && iteration % interval == 0;
 }
@@ -111,9 +95,9 @@ void Trainer::load_scene() {
   check_scene_before_training(*scene_);
   background_ = background(config_.model, scene_->bands());
   if (config_.model.background_from_views) {
-    background_ = border_colour(*scene_, scene_->train);
-    core::log_info("background starts from the training views' border colour" +
-                   describe_values(background_));
+    background_ = io::border_colour(*scene_, scene_->train);
+    core::log_info("background starts from the training views' border colour (" +
+                   io::describe_colour(background_) + ")");
   }
   extent_ = scene_extent(*scene_, scene_->train);
   const LossConfig& loss = config_.loss;

@@ -1,16 +1,18 @@
 // Initial state on small RGB scenes written here: random points for wide and
-// narrow fields of view, the border colour that starts the background, and
-// the fallback to random points.
+// narrow fields of view, the border colour that starts the background (and
+// tells a masked backdrop from a natural scene's border), and the fallback to
+// random points.
 #include <ATen/CPUGeneratorImpl.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 #include "io/image/image.h"
+#include "io/scene/backdrop.h"
 #include "io/scene/scene.h"
 #include "io/transforms/transforms.h"
 #include "support/test_support.h"
-#include "train/background.h"
 #include "train/init.h"
 
 namespace ddhgs::train {
@@ -36,7 +38,8 @@ torch::Tensor picture(int view) {
   return image;
 }
 
-fs::path write_scene(const std::string& name, double fx) {
+fs::path write_scene(const std::string& name, double fx,
+                     const std::function<torch::Tensor(int)>& pictures = picture) {
   const fs::path root = test::temp_dir(name);
   fs::create_directories(root / "images");
   io::TransformsFile file;
@@ -49,7 +52,7 @@ fs::path write_scene(const std::string& name, double fx) {
     f.intrinsics.width = kWidth;
     f.intrinsics.height = kHeight;
     f.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(w2c_of(i));
-    io::write_png(root / f.file_path, picture(i));
+    io::write_png(root / f.file_path, pictures(i));
     file.frames.push_back(f);
   }
   io::write_transforms(root / "transforms.json", file);
@@ -118,14 +121,38 @@ TEST(Init, ExtraRandomPointsJoinTheDatasetsPoints) {
 
 TEST(Init, BorderColourIsTheMedianOfTheBorderPixels) {
   auto scene = io::load_scene(write_scene("init_border", 14.0));
-  const torch::Tensor colour = border_colour(*scene, scene->train);
+  const torch::Tensor colour = io::border_colour(*scene, scene->train);
   ASSERT_EQ(colour.sizes(), (std::vector<int64_t>{3}));
   // The object on view 1's top edge and view 2's tint are minorities.
   EXPECT_TRUE(torch::allclose(colour, torch::ones({3}), 0, 1e-6)) << colour;
   // Only view 2 (tinted red channel): its own border colour.
-  const torch::Tensor tinted = border_colour(*scene, {2});
+  const torch::Tensor tinted = io::border_colour(*scene, {2});
   EXPECT_NEAR(tinted[0].item<double>(), 200.0 / 255, 1e-6);
   EXPECT_NEAR(tinted[1].item<double>(), 1.0, 1e-6);
+}
+
+TEST(Init, MaskedBackdropNeedsMostOfTheBorderOnIt) {
+  auto scene = io::load_scene(write_scene("init_backdrop", 14.0));
+  // 96 border pixels (2 wide) per 16 x 12 view, 10 views: the object covers
+  // 12 of view 1's, and view 2's 96 are tinted; 852 of 960 (0.8875) are white.
+  std::vector<int> all(kViews);
+  for (int i = 0; i < kViews; ++i) all[size_t(i)] = i;
+  const auto found = io::masked_backdrop(*scene, all, io::kBackdropTolerance, 0.88);
+  ASSERT_TRUE(found.has_value());
+  EXPECT_TRUE(torch::allclose(*found, torch::ones({3}), 0, 1e-6)) << *found;
+  EXPECT_FALSE(io::masked_backdrop(*scene, all, io::kBackdropTolerance, 0.89).has_value());
+  // The tint (55 levels, 0.216) counts once the tolerance admits it: 948 of 960.
+  EXPECT_TRUE(io::masked_backdrop(*scene, all, 0.22, 0.98).has_value());
+}
+
+TEST(Init, ANaturalBorderIsNoBackdrop) {
+  // Every border pixel a different grey: nothing within the tolerance of the median.
+  auto ramp = [](int) {
+    auto image = torch::arange(kHeight * kWidth, torch::kFloat32).view({kHeight, kWidth, 1});
+    return (image * (250.0f / (kHeight * kWidth))).to(torch::kUInt8).repeat({1, 1, 3});
+  };
+  auto scene = io::load_scene(write_scene("init_natural", 14.0, ramp));
+  EXPECT_FALSE(io::masked_backdrop(*scene, scene->train).has_value());
 }
 
 }  // namespace
