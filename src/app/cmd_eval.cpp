@@ -8,10 +8,12 @@
 
 #include "app/registry.h"
 #include "app/trained_run.h"
+#include "core/log.h"
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
+#include "io/scene/backdrop.h"
 
 namespace ddhgs::app {
 namespace {
@@ -59,6 +61,12 @@ Action setup(CLI::App& parent) {
     std::vector<int> views = eval::split_views(*run.scene, args->split);
     eval::EvalOptions options;
     options.fps_repeats = args->fps_repeats;
+    if (auto backdrop = io::masked_backdrop(*run.scene, run.scene->train)) {
+      options.backdrop = *backdrop;
+      core::log_info("the views are masked to a uniform backdrop (" +
+                     io::describe_colour(*backdrop) +
+                     "): the object (the pixels unlike it) is measured on its own too");
+    }
     eval::EvalReport report =
         eval::evaluate(*run.scene, run.gaussians, run.background, views, args->split, options);
 

@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "io/files/atomic_file.h"
+#include "io/scene/backdrop.h"
 
 namespace ddhgs::eval {
 namespace {
@@ -30,6 +31,30 @@ std::string fixed(double value, int decimals) {
   return buf;
 }
 
+// Mean over views; the interior over the views that have one.
+std::optional<ObjectMetrics> mean_object(const std::vector<ObjectMetrics>& views) {
+  if (views.empty()) return std::nullopt;
+  std::vector<RegionMetrics> object, interior;
+  ObjectMetrics mean;
+  for (const ObjectMetrics& v : views) {
+    object.push_back(v.object);
+    if (v.interior) interior.push_back(*v.interior);
+    mean.share += v.share / double(views.size());
+  }
+  mean.object = mean_region_metrics(object);
+  if (!interior.empty()) mean.interior = mean_region_metrics(interior);
+  return mean;
+}
+
+json object_json(const ObjectMetrics& m) {
+  json j = {{"pixel_share", m.share}, {"psnr", m.object.psnr_db}, {"sam", m.object.sam_rad}};
+  if (m.interior) {
+    j["interior_psnr"] = m.interior->psnr_db;
+    j["interior_sam"] = m.interior->sam_rad;
+  }
+  return j;
+}
+
 }  // namespace
 
 torch::Tensor render_view(const io::Scene& scene, const model::Gaussians& gaussians,
@@ -48,6 +73,20 @@ ViewMetrics measure_view(const io::Scene& scene, int view, const torch::Tensor& 
   m.stored = compute_metrics(measured, scene.image(view));
   const torch::Tensor clean = scene.clean_image(view);
   if (clean.defined()) m.clean = compute_metrics(measured, clean);
+  return m;
+}
+
+std::optional<ObjectMetrics> measure_object(const torch::Tensor& image, const torch::Tensor& truth,
+                                            const torch::Tensor& backdrop) {
+  torch::NoGradGuard no_grad;
+  const torch::Tensor mask = io::object_mask(truth, backdrop);
+  const torch::Tensor measured = image.detach().clamp(0, 1);
+  const std::optional<RegionMetrics> object = region_metrics(measured, truth, mask);
+  if (!object) return std::nullopt;
+  ObjectMetrics m;
+  m.object = *object;
+  m.interior = region_metrics(measured, truth, io::interior(mask));
+  m.share = mask.to(torch::kFloat64).mean().item<double>();
   return m;
 }
 
@@ -102,22 +141,38 @@ EvalReport evaluate(const io::Scene& scene, const model::Gaussians& gaussians,
   report.width = scene.views[size_t(views.front())].camera.intrinsics.width;
   report.height = scene.views[size_t(views.front())].camera.intrinsics.height;
 
+  report.backdrop = options.backdrop;
+  const bool masked = options.backdrop.defined();
+
   std::vector<ImageMetrics> stored, clean;
+  std::vector<ObjectMetrics> stored_object, clean_object;
+  auto object_of = [&](const torch::Tensor& image, const torch::Tensor& truth,
+                       std::vector<ObjectMetrics>& all) -> std::optional<ObjectMetrics> {
+    if (!masked) return std::nullopt;
+    std::optional<ObjectMetrics> o = measure_object(image, truth, options.backdrop);
+    if (o) all.push_back(*o);
+    return o;
+  };
   core::ProgressBar bar("eval " + split_name, int64_t(views.size()));
   for (size_t i = 0; i < views.size(); ++i) {
     int v = views[i];
     const std::string& name = scene.views[size_t(v)].name;
-    const ViewMetrics m = measure_view(scene, v, render_view(scene, gaussians, background, v));
+    const torch::Tensor image = render_view(scene, gaussians, background, v);
+    const ViewMetrics m = measure_view(scene, v, image);
     stored.push_back(m.stored);
-    report.per_view.push_back({name, "views", m.stored});
+    report.per_view.push_back(
+        {name, "views", m.stored, object_of(image, scene.image(v), stored_object)});
     if (m.clean) {
       clean.push_back(*m.clean);
-      report.per_view.push_back({name, "clean", *m.clean});
+      report.per_view.push_back(
+          {name, "clean", *m.clean, object_of(image, scene.clean_image(v), clean_object)});
     }
     bar.update(int64_t(i + 1), "PSNR " + fixed(stored.back().psnr_db, 2) + " dB");
   }
   report.mean = mean_metrics(stored);
   if (!clean.empty()) report.mean_clean = mean_metrics(clean);
+  report.mean_object = mean_object(stored_object);
+  report.mean_object_clean = mean_object(clean_object);
   bar.finish("PSNR " + fixed(report.mean.psnr_db, 2) + " dB");
 
   if (options.fps_repeats > 0) {
@@ -140,6 +195,17 @@ void write_metrics_json(const std::filesystem::path& path, const EvalReport& rep
                 {"ssim", "11x11 Gaussian window, sigma 1.5, valid windows"},
                 {"fps", "frames per second, render only"}};
   if (report.mean_clean) j["clean"] = metrics_json(*report.mean_clean, report.wavelengths_nm);
+  if (report.backdrop.defined()) {
+    const torch::Tensor b = report.backdrop.to(torch::kFloat64).contiguous();
+    j["backdrop"] = {
+        {"value", std::vector<double>(b.data_ptr<double>(), b.data_ptr<double>() + b.numel())},
+        {"tolerance", io::kBackdropTolerance}};
+    j["units"]["object"] =
+        "pixels of the truth that differ from the backdrop by more than its tolerance in some "
+        "band; interior: those without a backdrop pixel among their 8 neighbours";
+  }
+  if (report.mean_object) j["object"] = object_json(*report.mean_object);
+  if (report.mean_object_clean) j["clean"]["object"] = object_json(*report.mean_object_clean);
   if (report.timing && report.timing->repeats > 0) {
     j["fps"] = report.timing->fps();
     j["render_ms"] = report.timing->median_ms;
@@ -150,12 +216,27 @@ void write_metrics_json(const std::filesystem::path& path, const EvalReport& rep
 }
 
 void write_per_view_csv(const std::filesystem::path& path, const EvalReport& report) {
+  // A masked scene's object columns follow; empty where a view has no
+  // object (or no interior).
+  const bool masked = report.backdrop.defined();
   std::ostringstream csv;
-  csv << "view,truth,psnr_db,ssim,sam_rad,rmse\n";
-  for (const ViewResult& r : report.per_view)
+  csv << "view,truth,psnr_db,ssim,sam_rad,rmse";
+  if (masked)
+    csv << ",object_share,object_psnr_db,object_sam_rad,interior_psnr_db,interior_sam_rad";
+  csv << "\n";
+  for (const ViewResult& r : report.per_view) {
     csv << r.view << "," << r.truth << "," << fixed(r.metrics.psnr_db, 6) << ","
         << fixed(r.metrics.ssim, 8) << "," << fixed(r.metrics.sam_rad, 8) << ","
-        << fixed(r.metrics.rmse, 8) << "\n";
+        << fixed(r.metrics.rmse, 8);
+    if (masked) {
+      const std::optional<ObjectMetrics>& o = r.object;
+      const RegionMetrics* in = o && o->interior ? &*o->interior : nullptr;
+      csv << "," << (o ? fixed(o->share, 6) : "") << "," << (o ? fixed(o->object.psnr_db, 6) : "")
+          << "," << (o ? fixed(o->object.sam_rad, 8) : "") << ","
+          << (in ? fixed(in->psnr_db, 6) : "") << "," << (in ? fixed(in->sam_rad, 8) : "");
+    }
+    csv << "\n";
+  }
   io::write_file_atomically(path, csv.str());
 }
 
@@ -172,8 +253,23 @@ std::string format_report(const EvalReport& report) {
                   m.sam_rad, m.rmse);
     out << buf;
   };
+  // Under the row of their truth, indented.
+  auto object_rows = [&](const ObjectMetrics& m) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf,
+                  "   %-6s %8.3f %8s %8.4f %8s  (%.0f %% of the pixels: unlike the backdrop)\n",
+                  "object", m.object.psnr_db, "-", m.object.sam_rad, "-", 100 * m.share);
+    out << buf;
+    if (!m.interior) return;
+    std::snprintf(buf, sizeof buf,
+                  "   %-6s %8.3f %8s %8.4f %8s  (the object less its 1-pixel outline)\n", "inside",
+                  m.interior->psnr_db, "-", m.interior->sam_rad, "-");
+    out << buf;
+  };
   row("views", report.mean);
+  if (report.mean_object) object_rows(*report.mean_object);
   if (report.mean_clean) row("clean", *report.mean_clean);
+  if (report.mean_object_clean) object_rows(*report.mean_object_clean);
   if (report.timing && report.timing->repeats > 0)
     out << "  render " << fixed(report.timing->fps(), 2) << " FPS ("
         << fixed(report.timing->median_ms, 1) << " ms per frame, median of "

@@ -38,10 +38,27 @@ ViewMetrics measure_view(const io::Scene& scene, int view,
 // View indices of "test", "train" or "all"; core::Error for another name.
 std::vector<int> split_views(const io::Scene& scene, const std::string& split);
 
+// A masked view's object (io/scene/backdrop.h): the pixels of the truth that
+// differ from the backdrop, and their interior (without the one-pixel outline
+// where a novel view's silhouette error sits).
+struct ObjectMetrics {
+  RegionMetrics object;
+  std::optional<RegionMetrics> interior;  // none when the object has no interior
+  double share = 0;                       // object pixels / all pixels
+};
+
+// Object metrics of a render against a masked truth; none when no pixel of
+// the truth differs from the backdrop. The render is clamped as measure_view
+// clamps it.
+std::optional<ObjectMetrics> measure_object(const torch::Tensor& image,      // [H, W, N]
+                                            const torch::Tensor& truth,      // [H, W, N]
+                                            const torch::Tensor& backdrop);  // [N]
+
 struct ViewResult {
   std::string view;   // file stem
   std::string truth;  // "views" (as stored, noisy for synthetic scenes) or "clean"
   ImageMetrics metrics;
+  std::optional<ObjectMetrics> object;  // when the scene has a masked backdrop
 };
 
 struct Timing {
@@ -60,10 +77,16 @@ struct EvalReport {
   ImageMetrics mean;                       // over views, against the stored views
   std::optional<ImageMetrics> mean_clean;  // against clean ground truth
   std::optional<Timing> timing;
+  torch::Tensor backdrop;                    // [N]; undefined: not a masked scene
+  std::optional<ObjectMetrics> mean_object;  // over views, against the stored views
+  std::optional<ObjectMetrics> mean_object_clean;
 };
 
 struct EvalOptions {
   int fps_repeats = 5;  // 0: no timing
+  // [N]: the scene's views are masked to this backdrop (io::masked_backdrop);
+  // the object is then measured on its own too. Undefined: whole images only.
+  torch::Tensor backdrop;
 };
 
 // Renders each view (no autograd) and measures it; FPS is timed on the

@@ -171,4 +171,31 @@ ImageMetrics mean_metrics(const std::vector<ImageMetrics>& views) {
   return mean;
 }
 
+std::optional<RegionMetrics> region_metrics(const torch::Tensor& pred, const torch::Tensor& gt,
+                                            const torch::Tensor& mask) {
+  torch::NoGradGuard no_grad;
+  auto [p, g] = as_double(pred, gt);
+  core::require(mask.defined() && mask.scalar_type() == torch::kBool && mask.dim() == 2 &&
+                    mask.size(0) == p.size(0) && mask.size(1) == p.size(1),
+                "metrics: the region mask " + (mask.defined() ? shape_string(mask) : "(none)") +
+                    " must be [H, W] bool for images " + shape_string(p));
+  const torch::Tensor rows = mask.reshape({-1});
+  if (!rows.any().item<bool>()) return std::nullopt;
+  const int64_t n = p.size(2);
+  // [P, 1, N]: the region's pixels as a one-column image.
+  const torch::Tensor pr = p.reshape({-1, n}).index({rows}).unsqueeze(1);
+  const torch::Tensor gr = g.reshape({-1, n}).index({rows}).unsqueeze(1);
+  return RegionMetrics{psnr_from_mse((pr - gr).square().mean().item<double>()),
+                       sam_checked(pr, gr)};
+}
+
+RegionMetrics mean_region_metrics(const std::vector<RegionMetrics>& views) {
+  RegionMetrics mean;
+  for (const RegionMetrics& v : views) {
+    mean.psnr_db += v.psnr_db / double(views.size());
+    mean.sam_rad += v.sam_rad / double(views.size());
+  }
+  return mean;
+}
+
 }  // namespace ddhgs::eval

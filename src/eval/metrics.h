@@ -4,6 +4,7 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <optional>
 #include <vector>
 
 namespace ddhgs::eval {
@@ -62,5 +63,24 @@ ImageMetrics compute_metrics(const torch::Tensor& pred,  // [H, W, N]
 
 // Element-wise mean over views (per-band values averaged band by band).
 ImageMetrics mean_metrics(const std::vector<ImageMetrics>& views);
+
+// PSNR and SAM over one region of a view: the MSE over the region's pixels
+// and every band (capped as psnr_db is), and the spectral angle averaged over
+// its pixels as sam_rad averages. For the object of a masked view
+// (io/scene/backdrop.h), which whole-image figures mix with a backdrop that
+// is matched almost exactly.
+struct RegionMetrics {
+  double psnr_db = 0;
+  double sam_rad = 0;
+};
+
+// None when the mask selects no pixel. Throws core::Error when the mask is
+// not [H, W] bool of the images' size.
+std::optional<RegionMetrics> region_metrics(const torch::Tensor& pred,   // [H, W, N]
+                                            const torch::Tensor& gt,     // [H, W, N]
+                                            const torch::Tensor& mask);  // [H, W] bool
+
+// Mean over views, value by value.
+RegionMetrics mean_region_metrics(const std::vector<RegionMetrics>& views);
 
 }  // namespace ddhgs::eval

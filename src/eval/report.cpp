@@ -99,13 +99,28 @@ json data_summary(const io::Scene& scene, const model::Gaussians& gaussians) {
 }
 
 // Rows from eval/metrics.json beyond what the report measures itself, such as
-// the denoiser's output once `ddhgs eval` writes it.
+// the object of a masked capture, or the denoiser's output once `ddhgs eval`
+// writes it.
 void add_eval_rows(const json& eval_metrics, json& rows) {
   if (!eval_metrics.is_object()) return;
   for (const auto& [key, value] : eval_metrics.items()) {
     if (key == "clean" || !value.is_object() || !value.contains("psnr") ||
         !value["psnr"].is_number())
       continue;
+    if (key == "object") {
+      rows.push_back({{"label", "object: the pixels unlike the backdrop (from eval/metrics.json)"},
+                      {"psnr", value["psnr"]},
+                      {"ssim", nullptr},
+                      {"sam", null_or(value, "sam")},
+                      {"rmse", nullptr}});
+      if (value.contains("interior_psnr"))
+        rows.push_back({{"label", "object less its 1-pixel outline (from eval/metrics.json)"},
+                        {"psnr", value["interior_psnr"]},
+                        {"ssim", nullptr},
+                        {"sam", null_or(value, "interior_sam")},
+                        {"rmse", nullptr}});
+      continue;
+    }
     rows.push_back({{"label", key + " (from eval/metrics.json)"},
                     {"psnr", null_or(value, "psnr")},
                     {"ssim", null_or(value, "ssim")},

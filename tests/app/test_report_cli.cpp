@@ -131,8 +131,15 @@ TEST_F(ReportCli, WritesSelfContainedReportThatAgreesWithTheRun) {
   json data = read_report_data(report);
   EXPECT_EQ(data["wavelengths_nm"].size(), size_t(kBands));
   // Rows against the captured and the clean views; the same numbers as `ddhgs eval`.
+  // The synthetic scene's grey backdrop is uniform, so eval also measured the
+  // object and its inside; the report shows those two rows after.
   json eval = json::parse(io::read_file(*run_ / "eval" / "metrics.json"));
-  ASSERT_EQ(data["metrics"].size(), 2u) << data["metrics"].dump();
+  ASSERT_EQ(data["metrics"].size(), 4u) << data["metrics"].dump();
+  EXPECT_TRUE(contains(data["metrics"][2]["label"].get<std::string>(), "unlike the backdrop"));
+  EXPECT_NEAR(data["metrics"][2]["psnr"].get<double>(), eval["object"]["psnr"].get<double>(), 1e-9);
+  EXPECT_TRUE(data["metrics"][2]["ssim"].is_null());
+  EXPECT_NEAR(data["metrics"][3]["sam"].get<double>(), eval["object"]["interior_sam"].get<double>(),
+              1e-9);
   EXPECT_NEAR(data["metrics"][0]["psnr"].get<double>(), eval["psnr"].get<double>(), 1e-6);
   EXPECT_NEAR(data["metrics"][0]["sam"].get<double>(), eval["sam"].get<double>(), 1e-6);
   EXPECT_NEAR(data["metrics"][1]["psnr"].get<double>(), eval["clean"]["psnr"].get<double>(), 1e-6);

@@ -170,6 +170,66 @@ TEST_F(EvalScene, WritesMetricsJsonAndCsv) {
   EXPECT_EQ(lines, 2 * kViews);
 }
 
+TEST(MeasureObject, ObjectAndInteriorOfAMaskedView) {
+  // A 6 x 7 two-band view on the backdrop (1.0, 0.5) with a 4 x 4 object.
+  torch::Tensor truth = torch::empty({6, 7, 2});
+  truth.select(2, 0).fill_(1.0);
+  truth.select(2, 1).fill_(0.5);
+  truth.slice(0, 1, 5).slice(1, 2, 6).fill_(0.2);
+  torch::Tensor render = truth.clone();
+  render[1][2][0] = 0.3f;  // the object's corner, on its outline: 0.1 off in one band
+  render[0][0][0] = 1.5f;  // backdrop, clamped to 1 as measure_view clamps
+  const auto m = measure_object(render, truth, torch::tensor({1.0f, 0.5f}));
+  ASSERT_TRUE(m.has_value());
+  EXPECT_NEAR(m->share, 16.0 / 42, 1e-12);
+  // MSE over 16 pixels x 2 bands: 0.01 / 32 (float32 inputs: 0.3 - 0.2 to 1e-7).
+  EXPECT_NEAR(m->object.psnr_db, 10 * std::log10(3200.0), 1e-4);
+  ASSERT_TRUE(m->interior.has_value());
+  EXPECT_DOUBLE_EQ(m->interior->psnr_db, kMaxPsnrDb);  // the error sits on the outline
+  // A view of nothing but backdrop has no object to measure.
+  const torch::Tensor blank = torch::tensor({1.0f, 0.5f}).repeat({6, 7, 1});
+  EXPECT_FALSE(measure_object(blank, blank, torch::tensor({1.0f, 0.5f})).has_value());
+}
+
+TEST_F(EvalScene, MaskedScenesAlsoMeasureTheObject) {
+  EvalOptions options;
+  options.fps_repeats = 0;
+  options.backdrop = background;  // the renders' black backdrop
+  EvalReport report = evaluate(*scene, gaussians, background, scene->test, "test", options);
+  ASSERT_TRUE(report.mean_object.has_value());
+  ASSERT_TRUE(report.mean_object_clean.has_value());
+  // The model is the clean truth, object and all.
+  EXPECT_DOUBLE_EQ(report.mean_object_clean->object.psnr_db, kMaxPsnrDb);
+  // Against the noisy views: the mean of measure_object over the views.
+  std::vector<RegionMetrics> direct;
+  for (int v : scene->test) {
+    const torch::Tensor image =
+        model::render_gaussians(gaussians, scene->views[size_t(v)].camera, background).image;
+    direct.push_back(measure_object(image, scene->image(v), background)->object);
+  }
+  EXPECT_NEAR(report.mean_object->object.psnr_db, mean_region_metrics(direct).psnr_db, 1e-9);
+  EXPECT_GT(report.mean_object->share, 0);
+  EXPECT_LT(report.mean_object->share, 1);
+  ASSERT_TRUE(report.per_view[0].object.has_value());
+
+  const fs::path dir = test::temp_dir("eval_masked");
+  write_metrics_json(dir / "metrics.json", report);
+  write_per_view_csv(dir / "per_view.csv", report);
+  const auto j = nlohmann::json::parse(io::read_file(dir / "metrics.json"));
+  EXPECT_NEAR(j["object"]["psnr"].get<double>(), report.mean_object->object.psnr_db, 1e-9);
+  EXPECT_EQ(j["backdrop"]["value"].get<std::vector<double>>(), std::vector<double>(4, 0.0));
+  EXPECT_DOUBLE_EQ(j["clean"]["object"]["psnr"].get<double>(), kMaxPsnrDb);
+  std::ifstream csv(dir / "per_view.csv");
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line,
+            "view,truth,psnr_db,ssim,sam_rad,rmse,object_share,object_psnr_db,object_sam_rad,"
+            "interior_psnr_db,interior_sam_rad");
+  const std::string table = format_report(report);
+  EXPECT_NE(table.find("   object "), std::string::npos) << table;
+  EXPECT_NE(table.find("unlike the backdrop"), std::string::npos) << table;
+}
+
 TEST_F(EvalScene, RejectsBandMismatchAndUnknownSplit) {
   model::Gaussians three = gaussians;
   three.sh_dc = gaussians.sh_dc.narrow(1, 0, 3);

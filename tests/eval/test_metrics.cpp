@@ -151,6 +151,33 @@ TEST(Metrics, MeanOverViews) {
   EXPECT_THROW(mean_metrics({a, c}), core::Error);
 }
 
+TEST(Metrics, RegionMetricsCoverTheMaskedPixelsOnly) {
+  // 2 x 2 pixels, 2 bands; the mask takes the top row.
+  const torch::Tensor gt = torch::full({2, 2, 2}, 0.5, torch::kDouble);
+  const torch::Tensor pred = gt.clone();
+  pred[0][0][0] = 0.6;                     // in the region: 0.1 off in one band
+  pred[1][0] = torch::tensor({0.9, 0.1});  // outside it
+  const torch::Tensor mask = torch::tensor({true, true, false, false}).view({2, 2});
+  const auto m = region_metrics(pred, gt, mask);
+  ASSERT_TRUE(m.has_value());
+  // MSE over 2 pixels x 2 bands: 0.01 / 4.
+  EXPECT_NEAR(m->psnr_db, 10 * std::log10(400.0), 1e-9);
+  // The angle of (0.6, 0.5) to (0.5, 0.5), and 0 for the exact pixel
+  // (LibTorch's vectorised acos agrees with std::acos to 1e-8 here).
+  const double angle = std::acos(0.55 / (std::sqrt(0.61) * std::sqrt(0.5)));
+  EXPECT_NEAR(m->sam_rad, angle / 2, 1e-7);
+  // The whole image sees the pixel outside the region too.
+  EXPECT_LT(psnr_db(pred, gt), m->psnr_db);
+
+  EXPECT_FALSE(region_metrics(pred, gt, torch::zeros({2, 2}, torch::kBool)).has_value());
+  EXPECT_THROW(region_metrics(pred, gt, torch::ones({2, 2})), core::Error);  // not bool
+  EXPECT_THROW(region_metrics(pred, gt, torch::ones({2, 3}, torch::kBool)), core::Error);
+
+  const RegionMetrics mean = mean_region_metrics({{20, 0.1}, {30, 0.3}});
+  EXPECT_DOUBLE_EQ(mean.psnr_db, 25);
+  EXPECT_DOUBLE_EQ(mean.sam_rad, 0.2);
+}
+
 void write_raw(const std::filesystem::path& path, const torch::Tensor& t) {
   torch::Tensor d = t.to(torch::kDouble).contiguous();
   std::ofstream out(path, std::ios::binary);
