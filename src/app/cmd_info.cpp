@@ -2,10 +2,14 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 
 #include "app/registry.h"
+#include "core/error.h"
+#include "io/scene/backdrop.h"
 #include "io/scene/scene.h"
 #include "io/scene/scene_report.h"
 
@@ -64,7 +68,37 @@ std::string nm(double v) {
   return buf;
 }
 
-nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r) {
+// The border of the training views, read only when every view's header
+// checked out; a view that still fails to decode leaves it unchecked, with
+// the reason, rather than stopping info.
+struct BorderCheck {
+  std::optional<io::BorderScan> scan;
+  std::string why_not;
+};
+
+BorderCheck border_of(const io::Scene& scene, const io::SceneReport& r) {
+  if (!r.errors.empty()) return {std::nullopt, "views fail to load"};
+  if (scene.train.empty()) return {std::nullopt, "no training views"};
+  try {
+    return {io::scan_border(scene, scene.train), ""};
+  } catch (const core::Error& e) {
+    return {std::nullopt, e.what()};
+  }
+}
+
+std::string backdrop_line(const BorderCheck& b) {
+  if (!b.scan) return "not checked (" + b.why_not + ")";
+  const std::string share = std::to_string(int(std::lround(100 * b.scan->share))) + " %";
+  if (b.scan->share < io::kBackdropMinShare)
+    return "none (" + share + " of the view borders within " + nm(io::kBackdropTolerance) +
+           " of their median)";
+  return "masked to " + io::describe_colour(b.scan->colour) + " on " + share +
+         " of the view borders (the background starts from it; eval also measures the object "
+         "alone)";
+}
+
+nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r,
+                       const BorderCheck& border) {
   nlohmann::json j;
   j["root"] = scene.root.string();
   j["layout"] = scene.layout;
@@ -91,6 +125,16 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r) {
   j["fov_deg"] = {r.fov_x_deg, r.fov_y_deg};
   j["train_nearest_view_deg"] = r.spacing.train_nearest_deg;
   j["test_nearest_train_view_deg"] = r.spacing.test_nearest_deg;
+  // The border's median colour and the share of the border on it; "masked"
+  // when eval measures the object alone (io/scene/backdrop.h).
+  if (border.scan) {
+    const io::BorderScan& b = *border.scan;
+    const torch::Tensor c = b.colour.to(torch::kFloat64).contiguous();
+    j["border"] = {
+        {"colour", std::vector<double>(c.data_ptr<double>(), c.data_ptr<double>() + c.numel())},
+        {"share", b.share},
+        {"masked", b.share >= io::kBackdropMinShare}};
+  }
   j["notes"] = scene.notes;
   j["warnings"] = scene.warnings;
   j["errors"] = r.errors;
@@ -112,7 +156,7 @@ std::string bands_text(const io::Scene& scene) {
   return out + ", " + nm(*lo) + "-" + nm(*hi) + " nm";
 }
 
-void print_text(const io::Scene& scene, const io::SceneReport& r) {
+void print_text(const io::Scene& scene, const io::SceneReport& r, const BorderCheck& border) {
   std::ostream& out = std::cout;
   size_t f32_view = scene.view_bytes() / io::bytes_per_sample(scene.stored_type) * 4;
   out << "dataset     " << scene.root.string() << " (" << scene.layout << ")\n"
@@ -146,7 +190,8 @@ void print_text(const io::Scene& scene, const io::SceneReport& r) {
                                   " views with lens distortion, undistorted to pinhole at load"
                             : std::string("pinhole"))
       << ", field of view " << fixed1(r.fov_x_deg) << " x " << fixed1(r.fov_y_deg) << " deg\n"
-      << "spacing     " << spacing_line(r.spacing) << "\n";
+      << "spacing     " << spacing_line(r.spacing) << "\n"
+      << "backdrop    " << backdrop_line(border) << "\n";
   for (const auto& note : scene.notes) out << "  note: " << note << "\n";
   if (scene.warnings.empty() && r.errors.empty()) {
     out << "problems    none\n";
@@ -174,10 +219,11 @@ Action setup(CLI::App& parent) {
     options.rgb = args->rgb;
     auto scene = io::load_scene(args->dir, options);
     io::SceneReport report = io::inspect_scene(*scene);
+    const BorderCheck border = border_of(*scene, report);
     if (args->json)
-      std::cout << to_json(*scene, report).dump(2) << "\n";
+      std::cout << to_json(*scene, report, border).dump(2) << "\n";
     else
-      print_text(*scene, report);
+      print_text(*scene, report, border);
     // Problems that would stop training make the exit status non-zero.
     return report.errors.empty() ? 0 : 1;
   };

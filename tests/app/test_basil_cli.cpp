@@ -91,6 +91,10 @@ TEST(BasilCli, InfoShowsTheNarrowFieldAndTheTurntableSpacing) {
                      "1.7-15.2); test views 13.3-14.9 deg from the nearest training view"),
             std::string::npos)
       << out;
+  // The white mask, on most of the border (the black turntable is the rest).
+  EXPECT_NE(out.find("backdrop    masked to 1.000, 1.000, 1.000 on 82 % of the view borders"),
+            std::string::npos)
+      << out;
 }
 
 }  // namespace

@@ -62,7 +62,27 @@ TEST(InfoCli, DescribesAHealthyScene) {
   EXPECT_TRUE(contains(out, "240 B per view, 1.4 KiB for the scene as stored; 960 B / 5.6 KiB"))
       << out;
   EXPECT_TRUE(contains(out, "6 views with clean ground truth")) << out;
+  // View i is uniform at 10 i / 255: the median border value is 20 / 255, and
+  // views 1-3 (within 10 / 255 = 0.039 of it) are half the border.
+  EXPECT_TRUE(contains(out,
+                       "backdrop    masked to 0.078 to 0.078 over 5 bands on 50 % of the "
+                       "view borders"))
+      << out;
   EXPECT_TRUE(contains(out, "problems    none")) << out;
+}
+
+TEST(InfoCli, ABorderThatVariesIsNoBackdrop) {
+  fs::path root = make_scene("info_natural");
+  // Views 40 levels (0.157) apart: only the median's own view is within 0.04.
+  for (int i = 0; i < 6; ++i)
+    io::write_npy(root / "cubes" / ("v" + std::to_string(i) + ".npy"),
+                  torch::full({6, 8, 5}, 40 * i, torch::kUInt8));
+  std::string out;
+  ASSERT_EQ(info(root.string(), &out), 0) << out;
+  EXPECT_TRUE(contains(out,
+                       "backdrop    none (17 % of the view borders within 0.04 of their "
+                       "median)"))
+      << out;
 }
 
 TEST(InfoCli, JsonAtDownscale) {
@@ -79,6 +99,9 @@ TEST(InfoCli, JsonAtDownscale) {
   EXPECT_EQ(j["bytes_scene_float32"], 6 * 4 * 3 * 5 * 4);
   EXPECT_EQ(j["points"], 0);
   EXPECT_EQ(j["clean_views"], 6);
+  EXPECT_EQ(j["border"]["share"].get<double>(), 0.5);
+  EXPECT_TRUE(j["border"]["masked"].get<bool>());
+  EXPECT_NEAR(j["border"]["colour"][0].get<double>(), 20.0 / 255, 1e-6);
   EXPECT_TRUE(j["errors"].empty());
 }
 
@@ -97,6 +120,7 @@ TEST(InfoCli, ListsEveryProblem) {
   EXPECT_TRUE(contains(out, "v4.npy: has 7 bands, expected 5")) << out;
   EXPECT_TRUE(contains(out, "v5.npy")) << out;
   EXPECT_TRUE(contains(out, "NaN")) << out;
+  EXPECT_TRUE(contains(out, "backdrop    not checked (views fail to load)")) << out;
 }
 
 size_t count(const std::string& text, const std::string& part) {

@@ -46,14 +46,20 @@ torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views, i
   return median_colour(border_pixels(scene, views, max_views, border_px));
 }
 
+BorderScan scan_border(const Scene& scene, const std::vector<int>& views, double tolerance) {
+  const torch::Tensor pixels = border_pixels(scene, views, 16, 2);
+  BorderScan scan;
+  scan.colour = median_colour(pixels);
+  scan.share =
+      ((pixels - scan.colour).abs().amax(1) <= tolerance).to(torch::kFloat64).mean().item<double>();
+  return scan;
+}
+
 std::optional<torch::Tensor> masked_backdrop(const Scene& scene, const std::vector<int>& views,
                                              double tolerance, double min_share) {
-  const torch::Tensor pixels = border_pixels(scene, views, 16, 2);
-  const torch::Tensor colour = median_colour(pixels);
-  const double share =
-      ((pixels - colour).abs().amax(1) <= tolerance).to(torch::kFloat64).mean().item<double>();
-  if (share < min_share) return std::nullopt;
-  return colour;
+  BorderScan scan = scan_border(scene, views, tolerance);
+  if (scan.share < min_share) return std::nullopt;
+  return scan.colour;
 }
 
 std::string describe_colour(const torch::Tensor& values) {

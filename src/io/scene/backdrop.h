@@ -27,14 +27,25 @@ torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views, i
 // stays within 0.02; its darkest leaves and its pot are 0.5 away and more.
 constexpr double kBackdropTolerance = 0.04;
 
-// The views' backdrop when they are masked to a uniform one: the border colour
-// (as above) if at least min_share of the same border pixels lie within
-// tolerance of it in every band; otherwise none (a natural scene's border
-// varies). Basil: 79 % of the border is backdrop (the rest is the black
+// The border colour (as above) and the share of the same border pixels that
+// lie within tolerance of it in every band.
+struct BorderScan {
+  torch::Tensor colour;  // [N]
+  double share = 0;      // 0-1
+};
+BorderScan scan_border(const Scene& scene, const std::vector<int>& views,
+                       double tolerance = kBackdropTolerance);
+
+// A masked capture's backdrop needs at least this share of the border on it
+// (a natural scene's border varies). Basil: 79 % (the rest is the black
 // turntable in some views).
+constexpr double kBackdropMinShare = 0.5;
+
+// The views' backdrop when they are masked to a uniform one: the border
+// colour if at least min_share of the border lies on it; otherwise none.
 std::optional<torch::Tensor> masked_backdrop(const Scene& scene, const std::vector<int>& views,
                                              double tolerance = kBackdropTolerance,
-                                             double min_share = 0.5);
+                                             double min_share = kBackdropMinShare);
 
 // "0.990, 0.980, 1.000" for up to 4 bands, else "0.100 to 0.900 over 128 bands".
 std::string describe_colour(const torch::Tensor& values);  // [N]
