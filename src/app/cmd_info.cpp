@@ -9,6 +9,7 @@
 
 #include "app/registry.h"
 #include "core/error.h"
+#include "core/tensor_values.h"
 #include "io/scene/backdrop.h"
 #include "io/scene/scene.h"
 #include "io/scene/scene_report.h"
@@ -129,11 +130,9 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r,
   // when eval measures the object alone (io/scene/backdrop.h).
   if (border.scan) {
     const io::BorderScan& b = *border.scan;
-    const torch::Tensor c = b.colour.to(torch::kFloat64).contiguous();
-    j["border"] = {
-        {"colour", std::vector<double>(c.data_ptr<double>(), c.data_ptr<double>() + c.numel())},
-        {"share", b.share},
-        {"masked", b.share >= io::kBackdropMinShare}};
+    j["border"] = {{"colour", core::to_doubles(b.colour)},
+                   {"share", b.share},
+                   {"masked", b.share >= io::kBackdropMinShare}};
   }
   j["notes"] = scene.notes;
   j["warnings"] = scene.warnings;

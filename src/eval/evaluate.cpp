@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/tensor_values.h"
 #include "io/files/atomic_file.h"
 #include "io/scene/backdrop.h"
 
@@ -66,13 +67,19 @@ torch::Tensor render_view(const io::Scene& scene, const model::Gaussians& gaussi
       .image;
 }
 
-ViewMetrics measure_view(const io::Scene& scene, int view, const torch::Tensor& image) {
+ViewMetrics measure_view(const io::Scene& scene, int view, const torch::Tensor& image,
+                         const torch::Tensor& backdrop) {
   torch::NoGradGuard no_grad;
   const torch::Tensor measured = image.detach().clamp(0, 1);
   ViewMetrics m;
-  m.stored = compute_metrics(measured, scene.image(view));
+  const torch::Tensor stored = scene.image(view);
+  m.stored = compute_metrics(measured, stored);
+  if (backdrop.defined()) m.stored_object = measure_object(measured, stored, backdrop);
   const torch::Tensor clean = scene.clean_image(view);
-  if (clean.defined()) m.clean = compute_metrics(measured, clean);
+  if (clean.defined()) {
+    m.clean = compute_metrics(measured, clean);
+    if (backdrop.defined()) m.clean_object = measure_object(measured, clean, backdrop);
+  }
   return m;
 }
 
@@ -142,30 +149,21 @@ EvalReport evaluate(const io::Scene& scene, const model::Gaussians& gaussians,
   report.height = scene.views[size_t(views.front())].camera.intrinsics.height;
 
   report.backdrop = options.backdrop;
-  const bool masked = options.backdrop.defined();
-
   std::vector<ImageMetrics> stored, clean;
   std::vector<ObjectMetrics> stored_object, clean_object;
-  auto object_of = [&](const torch::Tensor& image, const torch::Tensor& truth,
-                       std::vector<ObjectMetrics>& all) -> std::optional<ObjectMetrics> {
-    if (!masked) return std::nullopt;
-    std::optional<ObjectMetrics> o = measure_object(image, truth, options.backdrop);
-    if (o) all.push_back(*o);
-    return o;
-  };
   core::ProgressBar bar("eval " + split_name, int64_t(views.size()));
   for (size_t i = 0; i < views.size(); ++i) {
     int v = views[i];
     const std::string& name = scene.views[size_t(v)].name;
-    const torch::Tensor image = render_view(scene, gaussians, background, v);
-    const ViewMetrics m = measure_view(scene, v, image);
+    const ViewMetrics m =
+        measure_view(scene, v, render_view(scene, gaussians, background, v), options.backdrop);
     stored.push_back(m.stored);
-    report.per_view.push_back(
-        {name, "views", m.stored, object_of(image, scene.image(v), stored_object)});
+    report.per_view.push_back({name, "views", m.stored, m.stored_object});
+    if (m.stored_object) stored_object.push_back(*m.stored_object);
     if (m.clean) {
       clean.push_back(*m.clean);
-      report.per_view.push_back(
-          {name, "clean", *m.clean, object_of(image, scene.clean_image(v), clean_object)});
+      report.per_view.push_back({name, "clean", *m.clean, m.clean_object});
+      if (m.clean_object) clean_object.push_back(*m.clean_object);
     }
     bar.update(int64_t(i + 1), "PSNR " + fixed(stored.back().psnr_db, 2) + " dB");
   }
@@ -196,10 +194,8 @@ void write_metrics_json(const std::filesystem::path& path, const EvalReport& rep
                 {"fps", "frames per second, render only"}};
   if (report.mean_clean) j["clean"] = metrics_json(*report.mean_clean, report.wavelengths_nm);
   if (report.backdrop.defined()) {
-    const torch::Tensor b = report.backdrop.to(torch::kFloat64).contiguous();
-    j["backdrop"] = {
-        {"value", std::vector<double>(b.data_ptr<double>(), b.data_ptr<double>() + b.numel())},
-        {"tolerance", io::kBackdropTolerance}};
+    j["backdrop"] = {{"value", core::to_doubles(report.backdrop)},
+                     {"tolerance", io::kBackdropTolerance}};
     j["units"]["object"] =
         "pixels of the truth that differ from the backdrop by more than its tolerance in some "
         "band; interior: those without a backdrop pixel among their 8 neighbours";

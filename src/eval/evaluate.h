@@ -21,23 +21,6 @@ torch::Tensor render_view(const io::Scene& scene, const model::Gaussians& gaussi
                           const torch::Tensor& background,  // [N]
                           int view, const torch::Tensor& band_offsets = {});
 
-// A view's metrics against the stored view and, when the scene has it, the
-// clean ground truth.
-struct ViewMetrics {
-  ImageMetrics stored;
-  std::optional<ImageMetrics> clean;
-};
-
-// The one way ddhgs measures an image of a view: eval, the report, the
-// denoiser's evaluation and the trainer's held-out check all call it, so
-// their numbers agree. The image is clamped to [0, 1], the range of
-// reflectance (and of every picture ddhgs writes), before it is compared.
-ViewMetrics measure_view(const io::Scene& scene, int view,
-                         const torch::Tensor& image);  // [H, W, N]
-
-// View indices of "test", "train" or "all"; core::Error for another name.
-std::vector<int> split_views(const io::Scene& scene, const std::string& split);
-
 // A masked view's object (io/scene/backdrop.h): the pixels of the truth that
 // differ from the backdrop, and their interior (without the one-pixel outline
 // where a novel view's silhouette error sits).
@@ -53,6 +36,27 @@ struct ObjectMetrics {
 std::optional<ObjectMetrics> measure_object(const torch::Tensor& image,      // [H, W, N]
                                             const torch::Tensor& truth,      // [H, W, N]
                                             const torch::Tensor& backdrop);  // [N]
+
+// A view's metrics against the stored view and, when the scene has it, the
+// clean ground truth; with a backdrop, its object's against each truth too.
+struct ViewMetrics {
+  ImageMetrics stored;
+  std::optional<ImageMetrics> clean;
+  std::optional<ObjectMetrics> stored_object, clean_object;
+};
+
+// The one way ddhgs measures an image of a view: eval, the report, the
+// denoiser's evaluation and the trainer's held-out check all call it, so
+// their numbers agree. The image is clamped to [0, 1], the range of
+// reflectance (and of every picture ddhgs writes), before it is compared.
+// backdrop ([N], io::masked_backdrop): also measure the object, against the
+// same truth tensors; undefined: whole images only.
+ViewMetrics measure_view(const io::Scene& scene, int view,
+                         const torch::Tensor& image,  // [H, W, N]
+                         const torch::Tensor& backdrop = {});
+
+// View indices of "test", "train" or "all"; core::Error for another name.
+std::vector<int> split_views(const io::Scene& scene, const std::string& split);
 
 struct ViewResult {
   std::string view;   // file stem

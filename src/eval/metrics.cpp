@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/tensor_values.h"
 
 namespace ddhgs::eval {
 namespace {
@@ -70,13 +71,8 @@ torch::Tensor ssim_per_band(const torch::Tensor& p, const torch::Tensor& g) {
   return map.mean(std::vector<int64_t>{1, 2, 3});
 }
 
-std::vector<double> to_vector(const torch::Tensor& t) {
-  torch::Tensor c = t.contiguous().to(torch::kDouble);
-  return std::vector<double>(c.data_ptr<double>(), c.data_ptr<double>() + c.numel());
-}
-
 std::vector<double> band_mse(const torch::Tensor& p, const torch::Tensor& g) {
-  return to_vector((p - g).square().mean(std::vector<int64_t>{0, 1}));
+  return core::to_doubles((p - g).square().mean(std::vector<int64_t>{0, 1}));
 }
 
 std::vector<double> band_psnr_checked(const torch::Tensor& p, const torch::Tensor& g) {
@@ -121,7 +117,7 @@ double ssim(const torch::Tensor& pred, const torch::Tensor& gt) {
 
 std::vector<double> band_ssim(const torch::Tensor& pred, const torch::Tensor& gt) {
   auto [p, g] = as_double(pred, gt);
-  return to_vector(ssim_per_band(p, g));
+  return core::to_doubles(ssim_per_band(p, g));
 }
 
 double sam_rad(const torch::Tensor& pred, const torch::Tensor& gt) {

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/tensor_values.h"
 #include "eval/report_views.h"
 #include "eval/rgb_export.h"
 
@@ -17,11 +18,6 @@ using json = nlohmann::json;
 std::string tensor_base64(const torch::Tensor& t) {
   torch::Tensor c = t.contiguous();
   return base64(std::string(static_cast<const char*>(c.data_ptr()), size_t(c.nbytes())));
-}
-
-std::vector<double> to_vector(const torch::Tensor& t) {  // [n] -> n doubles
-  torch::Tensor d = t.to(torch::kFloat64).contiguous().reshape({-1});
-  return std::vector<double>(d.data_ptr<double>(), d.data_ptr<double>() + d.numel());
 }
 
 // Values in [low, high] as uint16 steps, for log scales (steps of ~1e-4 in
@@ -66,7 +62,8 @@ json rgb_weights(const std::vector<double>& wavelengths_nm, int64_t bands) {
     mapping = band_mapping(wavelengths_nm, spread);
   }
   json weights = json::array();
-  for (int64_t n = 0; n < bands; ++n) weights.push_back(to_vector(mapping.linear.select(1, n)));
+  for (int64_t n = 0; n < bands; ++n)
+    weights.push_back(core::to_doubles(mapping.linear.select(1, n)));
   return {{"weights", weights},
           {"srgb_curve", mapping.curve == ColourMapping::Curve::Srgb},
           {"title", mapping.description}};
@@ -128,7 +125,7 @@ nlohmann::json splat_view_data(const model::Gaussians& gaussians, const io::Scen
   for (int v : scene.train) cameras.push_back(camera_json(scene.views[size_t(v)].camera));
   json vectors = json::array();
   for (int64_t k = 0; k < basis.vectors.size(0); ++k)
-    vectors.push_back(to_vector(basis.vectors[k]));
+    vectors.push_back(core::to_doubles(basis.vectors[k]));
 
   return {
       {"count", G},
@@ -138,14 +135,14 @@ nlohmann::json splat_view_data(const model::Gaussians& gaussians, const io::Scen
       {"quats", tensor_base64((quats * 127.0).round().to(torch::kInt8))},
       {"opacity", tensor_base64((opacity * 255.0).round().to(torch::kUInt8))},
       {"basis",
-       {{"mean", to_vector(basis.mean)},
+       {{"mean", core::to_doubles(basis.mean)},
         {"vectors", vectors},
-        {"low", to_vector(basis.low)},
-        {"high", to_vector(basis.high)},
+        {"low", core::to_doubles(basis.low)},
+        {"high", core::to_doubles(basis.high)},
         {"rmse", basis.rmse},
         {"coefficients", tensor_base64(basis.coefficients)}}},
       {"pseudo_rgb", rgb_weights(scene.wavelengths_nm, scene.bands())},
-      {"background", to_vector(background)},
+      {"background", core::to_doubles(background)},
       {"cameras", cameras},
       {"start", camera_json(scene.views[size_t(start_view)].camera)},
   };

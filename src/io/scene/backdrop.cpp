@@ -47,7 +47,7 @@ torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views, i
 }
 
 BorderScan scan_border(const Scene& scene, const std::vector<int>& views, double tolerance) {
-  const torch::Tensor pixels = border_pixels(scene, views, 16, 2);
+  const torch::Tensor pixels = border_pixels(scene, views, kBorderViews, kBorderPx);
   BorderScan scan;
   scan.colour = median_colour(pixels);
   scan.share =

@@ -16,19 +16,24 @@
 
 namespace ddhgs::io {
 
+// How much of the views the border is read from: up to this many views,
+// this many pixels in from the edge.
+constexpr int kBorderViews = 16;
+constexpr int kBorderPx = 2;
+
 // Per-band median of the pixels within border_px of the image edge, over up
 // to max_views of `views` spread along the list: [N] float32. The median
 // ignores the object where it touches the border in a minority of the pixels.
-torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views, int max_views = 16,
-                            int border_px = 2);
+torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views,
+                            int max_views = kBorderViews, int border_px = kBorderPx);
 
 // A pixel belongs to the backdrop when every band is within this of the
 // backdrop's value (reflectance units). JPEG noise on Basil's white backdrop
 // stays within 0.02; its darkest leaves and its pot are 0.5 away and more.
 constexpr double kBackdropTolerance = 0.04;
 
-// The border colour (as above) and the share of the same border pixels that
-// lie within tolerance of it in every band.
+// The border colour (as above, with the default counts) and the share of the
+// same border pixels that lie within tolerance of it in every band.
 struct BorderScan {
   torch::Tensor colour;  // [N]
   double share = 0;      // 0-1
