@@ -52,11 +52,4 @@ class CameraRefinementImpl : public torch::nn::Module {
 };
 TORCH_MODULE(CameraRefinement);
 
-// Unit quaternion (w, x, y, z) of a rotation vector r: [3] -> [4];
-// differentiable at r = 0.
-torch::Tensor rotation_vector_quat(const torch::Tensor& r);
-
-// Hamilton product a * b of (w, x, y, z) quaternions: [4] x [G, 4] -> [G, 4].
-torch::Tensor quat_multiply(const torch::Tensor& a, const torch::Tensor& b);
-
 }  // namespace ddhgs::train
