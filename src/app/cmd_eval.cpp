@@ -27,6 +27,8 @@ struct EvalArgs {
   // One step from s = 0.1 measured best on our scenes (docs/benchmarks.md).
   std::vector<int64_t> denoise_steps = {1, 10};
   bool ddpm = false, no_denoise = false;
+  bool align_poses = false;
+  eval::AlignOptions align;
   SamplerFlags sampler;
 };
 
@@ -53,6 +55,13 @@ Action setup(CLI::App& parent) {
       ->capture_default_str();
   cmd->add_flag("--ddpm", args->ddpm,
                 "Also evaluate full ancestral DDPM sampling (every step below the start; slow)");
+  cmd->add_flag("--align-poses", args->align_poses,
+                "Also measure each view from its pose aligned to the view (the model frozen; a "
+                "rotation and a shift fitted to the image): the model's error apart from the "
+                "poses' (real captures' poses are off by a pixel or so)");
+  cmd->add_option("--align-steps", args->align.steps, "Optimiser steps per view for --align-poses")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   add_sampler_flags(cmd, args->sampler);
   cmd->add_flag("--no-denoise", args->no_denoise, "Evaluate the raw render only");
   return [args] {
@@ -61,6 +70,7 @@ Action setup(CLI::App& parent) {
     std::vector<int> views = eval::split_views(*run.scene, args->split);
     eval::EvalOptions options;
     options.fps_repeats = args->fps_repeats;
+    if (args->align_poses) options.align = args->align;
     if (auto backdrop = io::masked_backdrop(*run.scene, run.scene->train)) {
       options.backdrop = *backdrop;
       core::log_info("the views are masked to a uniform backdrop (" +

@@ -81,10 +81,10 @@ DenoisedReport evaluate_denoised(const io::Scene& scene, const model::Gaussians&
       result.denoise_ms += ms_since(start);
       const ViewMetrics m = measure_view(scene, v, denoised);
       stored[s].push_back(m.stored);
-      result.per_view.push_back({name, "views", m.stored, std::nullopt});
+      result.per_view.push_back({name, "views", m.stored, std::nullopt, std::nullopt});
       if (m.clean) {
         clean[s].push_back(*m.clean);
-        result.per_view.push_back({name, "clean", *m.clean, std::nullopt});
+        result.per_view.push_back({name, "clean", *m.clean, std::nullopt, std::nullopt});
       }
       bar.update(int64_t(i * settings.size() + s + 1),
                  settings[s].name + " PSNR " + fixed(stored[s].back().psnr_db, 2) + " dB");

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "eval/metrics.h"
+#include "eval/pose_alignment.h"
 #include "io/scene/scene.h"
 #include "model/gaussians.h"
 
@@ -58,11 +59,19 @@ ViewMetrics measure_view(const io::Scene& scene, int view,
 // View indices of "test", "train" or "all"; core::Error for another name.
 std::vector<int> split_views(const io::Scene& scene, const std::string& split);
 
+// A view measured from its pose aligned to the stored view (pose_alignment.h).
+struct AlignedMetrics {
+  ImageMetrics metrics;  // against the stored view
+  bool moved = false;    // false: the recorded pose was kept
+  double motion_px = 0;  // AlignedView::motion_px
+};
+
 struct ViewResult {
   std::string view;   // file stem
   std::string truth;  // "views" (as stored, noisy for synthetic scenes) or "clean"
   ImageMetrics metrics;
-  std::optional<ObjectMetrics> object;  // when the scene has a masked backdrop
+  std::optional<ObjectMetrics> object;    // when the scene has a masked backdrop
+  std::optional<AlignedMetrics> aligned;  // rows of the stored views, with --align-poses
 };
 
 struct Timing {
@@ -84,6 +93,8 @@ struct EvalReport {
   torch::Tensor backdrop;                    // [N]; undefined: not a masked scene
   std::optional<ObjectMetrics> mean_object;  // over views, against the stored views
   std::optional<ObjectMetrics> mean_object_clean;
+  std::optional<AlignOptions> align;         // set when the poses were aligned
+  std::optional<ImageMetrics> mean_aligned;  // over views, against the stored views
 };
 
 struct EvalOptions {
@@ -91,6 +102,8 @@ struct EvalOptions {
   // [N]: the scene's views are masked to this backdrop (io::masked_backdrop);
   // the object is then measured on its own too. Undefined: whole images only.
   torch::Tensor backdrop;
+  // Also measure each view from its pose aligned to the stored view.
+  std::optional<AlignOptions> align;
 };
 
 // Renders each view (no autograd) and measures it; FPS is timed on the

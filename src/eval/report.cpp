@@ -121,7 +121,8 @@ void add_eval_rows(const json& eval_metrics, json& rows) {
                         {"rmse", nullptr}});
       continue;
     }
-    rows.push_back({{"label", key + " (from eval/metrics.json)"},
+    const std::string label = key == "aligned" ? "render from poses aligned to the views" : key;
+    rows.push_back({{"label", label + " (from eval/metrics.json)"},
                     {"psnr", null_or(value, "psnr")},
                     {"ssim", null_or(value, "ssim")},
                     {"sam", null_or(value, "sam")},

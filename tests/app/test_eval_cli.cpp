@@ -105,6 +105,18 @@ TEST_F(EvalCli, EvalWritesMetricsAgainstViewsAndCleanTruth) {
   size_t rows = size_t(std::count(csv.begin(), csv.end(), '\n'));
   EXPECT_EQ(rows, 1 + 2 * size_t(m["views"].get<int>())) << csv;
 
+  // --align-poses: a row and a block more, the plain figures unchanged.
+  ASSERT_EQ(ddhgs("eval " + run.string() + " --fps-repeats 0 --align-poses --align-steps 20", &out),
+            0)
+      << out;
+  EXPECT_TRUE(contains(out, "  aligned ")) << out;
+  json aligned = json::parse(io::read_file(run / "eval" / "metrics.json"));
+  EXPECT_DOUBLE_EQ(aligned["psnr"].get<double>(), m["psnr"].get<double>());
+  ASSERT_TRUE(aligned.contains("aligned"));
+  EXPECT_EQ(aligned["aligned"]["steps"], 20);
+  EXPECT_GE(aligned["aligned"]["psnr"].get<double>(), m["psnr"].get<double>() - 0.05);
+  EXPECT_TRUE(contains(io::read_file(run / "eval" / "per_view.csv"), ",aligned_motion_px\n"));
+
   ASSERT_EQ(ddhgs("eval " + run.string() + " --split train --fps-repeats 0", &out), 0) << out;
   json train = json::parse(io::read_file(run / "eval" / "metrics_train.json"));
   EXPECT_EQ(train["split"], "train");

@@ -5,6 +5,7 @@
 #include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -228,6 +229,62 @@ TEST_F(EvalScene, MaskedScenesAlsoMeasureTheObject) {
   const std::string table = format_report(report);
   EXPECT_NE(table.find("   object "), std::string::npos) << table;
   EXPECT_NE(table.find("unlike the backdrop"), std::string::npos) << table;
+}
+
+TEST_F(EvalScene, AlignedPosesMeasureTheModelApartFromAPoseError) {
+  EvalOptions options;
+  options.fps_repeats = 0;
+  const EvalReport right = evaluate(*scene, gaussians, background, scene->test, "test", options);
+  // View 3's recorded pose turned by 0.05 rad (about 1.5 px here): its
+  // stored views were taken from the pose before.
+  core::Camera& camera = scene->views[3].camera;
+  const core::Mat3 r = camera.world_to_camera.rotation();
+  core::Mat3 turn;
+  turn(0, 0) = std::cos(0.05), turn(0, 2) = std::sin(0.05);
+  turn(2, 0) = -std::sin(0.05), turn(2, 2) = std::cos(0.05);
+  const core::Vec3 centre = camera.center();
+  camera.world_to_camera = core::Mat4::from(turn * r, (turn * r * centre) * -1.0);
+
+  options.align = AlignOptions{200, 1.0};
+  const EvalReport report = evaluate(*scene, gaussians, background, scene->test, "test", options);
+  ASSERT_EQ(report.per_view.size(), 4u);
+  const ViewResult &v1 = report.per_view[0], &v3 = report.per_view[2];
+  ASSERT_EQ(v3.view, "v3");
+  ASSERT_TRUE(v1.aligned && v3.aligned);
+  EXPECT_FALSE(report.per_view[1].aligned) << "clean rows are not aligned";
+  // View 1's pose is right: aligning cannot lose, and finds little.
+  EXPECT_DOUBLE_EQ(v1.metrics.psnr_db, right.per_view[0].metrics.psnr_db);
+  EXPECT_GE(v1.aligned->metrics.psnr_db, v1.metrics.psnr_db - 0.05);
+  EXPECT_LT(v1.aligned->motion_px, 0.2);
+  // View 3: the wrong pose costs, the aligned pose gets the model's figure back.
+  EXPECT_LT(v3.metrics.psnr_db, right.per_view[2].metrics.psnr_db - 5);
+  EXPECT_NEAR(v3.aligned->metrics.psnr_db, right.per_view[2].metrics.psnr_db, 1.0);
+  EXPECT_TRUE(v3.aligned->moved);
+  EXPECT_NEAR(v3.aligned->motion_px, 1.5, 0.4);
+  ASSERT_TRUE(report.mean_aligned.has_value());
+  EXPECT_NEAR(report.mean_aligned->psnr_db,
+              0.5 * (v1.aligned->metrics.psnr_db + v3.aligned->metrics.psnr_db), 1e-9);
+
+  const fs::path dir = test::temp_dir("eval_aligned");
+  write_metrics_json(dir / "metrics.json", report);
+  write_per_view_csv(dir / "per_view.csv", report);
+  const auto j = nlohmann::json::parse(io::read_file(dir / "metrics.json"));
+  EXPECT_NEAR(j["aligned"]["psnr"].get<double>(), report.mean_aligned->psnr_db, 1e-9);
+  EXPECT_EQ(j["aligned"]["steps"], 200);
+  EXPECT_GE(j["aligned"]["moved_views"].get<int>(), 1);
+  std::ifstream csv(dir / "per_view.csv");
+  std::string header, row1, row1_clean;
+  std::getline(csv, header);
+  std::getline(csv, row1);
+  std::getline(csv, row1_clean);
+  EXPECT_EQ(header,
+            "view,truth,psnr_db,ssim,sam_rad,rmse,aligned_psnr_db,aligned_ssim,aligned_sam_rad,"
+            "aligned_rmse,aligned_motion_px");
+  EXPECT_EQ(std::count(row1.begin(), row1.end(), ','), 10) << row1;
+  EXPECT_EQ(row1_clean.substr(row1_clean.size() - 5), ",,,,,") << row1_clean;
+  const std::string table = format_report(report);
+  EXPECT_NE(table.find("  aligned "), std::string::npos) << table;
+  EXPECT_NE(table.find("poses aligned to the views"), std::string::npos) << table;
 }
 
 TEST_F(EvalScene, RejectsBandMismatchAndUnknownSplit) {
