@@ -106,8 +106,10 @@ struct EvalOptions {
   std::optional<AlignOptions> align;
 };
 
-// Renders each view (no autograd) and measures it; FPS is timed on the
-// scene's test views (the given views when the scene has none).
+// Renders each view (no autograd) and measures it; with options.align, also
+// aligns its pose (autograd through a frozen model, pose_alignment.h) and
+// measures it again. FPS is timed on the scene's test views (the given views
+// when the scene has none).
 EvalReport evaluate(const io::Scene& scene, const model::Gaussians& gaussians,
                     const torch::Tensor& background,  // [N]
                     const std::vector<int>& views, const std::string& split_name,
