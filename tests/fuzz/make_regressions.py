@@ -134,6 +134,9 @@ CASES = {
     # LibTorch allocates the size a zip entry declares, then reads the
     # uninitialised memory as the record: 4 GB "deflated" in 200 bytes.
     "torch_pt_huge_record": torch_pt_declaring(b"data.pkl", 8, 0xF0000000),
+    # The same for the version record, which LibTorch extracts while it
+    # opens the archive (the fuzzer found it: malloc of 4 GB).
+    "torch_pt_huge_version_record": torch_pt_declaring(b"version", 8, 0xFFFFFFFF),
 }
 
 

@@ -105,8 +105,9 @@ Cube read_pt(const fs::path& path, const CubeReadOptions& options) {
   require_zip_magic(path);
   torch::Tensor data;
   try {
-    caffe2::serialize::PyTorchStreamReader reader(path.string());
+    // Before the reader: its constructor already extracts the version record.
     check_zip_record_sizes(path);
+    caffe2::serialize::PyTorchStreamReader reader(path.string());
     RecordBytes stored;
     torch::IValue value = unpickle(reader, &stored, path);
     if (!value.isTensor())

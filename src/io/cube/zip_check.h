@@ -11,8 +11,11 @@ namespace ddhgs::io::detail {
 // way miniz (LibTorch's zip library) finds it and throws core::Error naming
 // the file when a record declares more than the file can hold: a stored
 // record more than the file's size, a compressed one more than the largest
-// plausible expansion of it (io/files/byte_count.h). Call it after the archive
-// has opened (miniz has then checked the directory's own bounds).
+// plausible expansion of it (io/files/byte_count.h). Call it before the
+// archive is opened: PyTorchStreamReader's constructor already extracts the
+// version record. Every read here is clamped to the file and every entry
+// advances past the last, so any file is safe to check; one miniz would
+// refuse passes unchecked and is refused by miniz.
 void check_zip_record_sizes(const std::filesystem::path& path);
 
 }  // namespace ddhgs::io::detail
