@@ -8,12 +8,19 @@
 namespace ddhgs::eval {
 namespace {
 
-// Median camera-space depth of the Gaussians in front of the camera; 0 when
-// none is.
-double median_depth(const torch::Tensor& means, const core::Camera& camera) {
+// means [G, 3] in the camera's frame (OpenCV axes), float64, no autograd.
+torch::Tensor camera_points(const torch::Tensor& means, const core::Camera& camera) {
   const core::Mat4& w = camera.world_to_camera;
-  const torch::Tensor row = torch::tensor({w(2, 0), w(2, 1), w(2, 2)}, torch::kFloat64);
-  const torch::Tensor z = torch::matmul(means.detach().to(torch::kFloat64), row) + w(2, 3);
+  torch::Tensor rows = torch::empty({3, 3}, torch::kFloat64);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) rows[i][j] = w(i, j);
+  return torch::matmul(means.detach().to(torch::kFloat64), rows.t()) +
+         torch::tensor({w(0, 3), w(1, 3), w(2, 3)}, torch::kFloat64);
+}
+
+// Median depth of the Gaussians in front of the camera; 0 when none is.
+double median_depth(const torch::Tensor& means, const core::Camera& camera) {
+  const torch::Tensor z = camera_points(means, camera).select(1, 2);
   const torch::Tensor ahead = z.masked_select(z > 0);
   return ahead.numel() > 0 ? ahead.median().item<double>() : 0.0;
 }
@@ -22,12 +29,7 @@ double median_depth(const torch::Tensor& means, const core::Camera& camera) {
 // and inside the frame.
 std::pair<torch::Tensor, torch::Tensor> project(const torch::Tensor& means,
                                                 const core::Camera& camera) {
-  const core::Mat4& w = camera.world_to_camera;
-  torch::Tensor rows = torch::empty({3, 3}, torch::kFloat64);
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) rows[i][j] = w(i, j);
-  const torch::Tensor x = torch::matmul(means.detach().to(torch::kFloat64), rows.t()) +
-                          torch::tensor({w(0, 3), w(1, 3), w(2, 3)}, torch::kFloat64);
+  const torch::Tensor x = camera_points(means, camera);
   const torch::Tensor z = x.select(1, 2);
   const core::Intrinsics& k = camera.intrinsics;
   const torch::Tensor u = k.fx * x.select(1, 0) / z + k.cx, v = k.fy * x.select(1, 1) / z + k.cy;
