@@ -8,24 +8,11 @@
 
 #include "eval/metrics.h"
 #include "eval/pose_alignment.h"
+#include "model/gaussian_fixtures.h"
 #include "model/gaussians.h"
 
 namespace ddhgs::eval {
 namespace {
-
-// A small random scene of coloured blobs around the origin.
-model::Gaussians blob_scene() {
-  torch::manual_seed(11);
-  const int64_t count = 80;
-  model::Gaussians g;
-  g.means = (torch::rand({count, 3}) - 0.5) * 1.6;
-  g.log_scales = torch::full({count, 3}, std::log(0.08));
-  g.quats = torch::tensor({1.0f, 0.0f, 0.0f, 0.0f}).repeat({count, 1});
-  g.logit_opacities = torch::full({count, 1}, 2.0);
-  g.sh_dc = torch::randn({count, 3}) * 1.5;
-  g.sh_rest = torch::zeros({count, 3, 0});
-  return g;
-}
 
 core::Camera recorded_camera() {
   core::Camera camera;
@@ -65,7 +52,7 @@ double mean_motion_px(const torch::Tensor& means, const core::Camera& a, const c
 }
 
 TEST(PoseAlignment, RecoversAKnownPoseError) {
-  const model::Gaussians scene = blob_scene();
+  const model::Gaussians scene = test::blob_scene(80, 11);
   const torch::Tensor background = torch::zeros({3});
   const core::Camera recorded = recorded_camera(), truth_camera = true_camera();
   const torch::Tensor truth =
@@ -84,7 +71,7 @@ TEST(PoseAlignment, RecoversAKnownPoseError) {
 }
 
 TEST(PoseAlignment, ARightPoseIsKept) {
-  const model::Gaussians scene = blob_scene();
+  const model::Gaussians scene = test::blob_scene(80, 11);
   const torch::Tensor background = torch::zeros({3});
   const core::Camera camera = recorded_camera();
   const torch::Tensor render = model::render_gaussians(scene, camera, background).image.detach();

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "model/densify.h"
+#include "model/gaussian_fixtures.h"
 #include "model/gaussians.h"
 #include "model/rigid_motion.h"
 #include "train/camera_refinement.h"
@@ -117,19 +118,6 @@ TEST(CameraRefinement, GradientsMatchFiniteDifferences) {
   }
 }
 
-// A small random scene of coloured blobs around the origin.
-model::Gaussians blob_scene(int64_t count) {
-  torch::manual_seed(7);
-  model::Gaussians g;
-  g.means = (torch::rand({count, 3}) - 0.5) * 1.6;
-  g.log_scales = torch::full({count, 3}, std::log(0.08));
-  g.quats = torch::tensor({1.0f, 0.0f, 0.0f, 0.0f}).repeat({count, 1});
-  g.logit_opacities = torch::full({count, 1}, 2.0);
-  g.sh_dc = torch::randn({count, 3}) * 1.5;
-  g.sh_rest = torch::zeros({count, 3, 0});
-  return g;
-}
-
 TEST(CameraRefinement, RecoversKnownRotationErrorsByRendering) {
   // Each recorded pose is turned about its centre by a known rotation vector
   // (the three sum to zero: a common turn of every training view is what
@@ -137,7 +125,7 @@ TEST(CameraRefinement, RecoversKnownRotationErrorsByRendering) {
   // corrections to renders from the true poses must find those rotations.
   // Translation is left out: with a small field of view a sideways shift and
   // a turn look alike.
-  const model::Gaussians scene = blob_scene(60);
+  const model::Gaussians scene = test::blob_scene(60, 7);
   const torch::Tensor background = torch::zeros({3});
   const torch::Tensor errors =
       torch::tensor({{-0.01, 0.015, 0.02}, {0.02, -0.03, 0.015}, {-0.01, 0.015, -0.035}},
@@ -183,7 +171,7 @@ TEST(CameraRefinement, RecoversKnownRotationErrorsByRendering) {
 
 TEST(CameraRefinement, RenderedLossGradientMatchesFiniteDifferences) {
   // Through the rasterizer: the gradient the trainer uses.
-  const model::Gaussians scene = blob_scene(60);
+  const model::Gaussians scene = test::blob_scene(60, 7);
   const torch::Tensor background = torch::zeros({3});
   core::Camera camera;
   camera.intrinsics = {90, 90, 32, 28, 64, 56};
