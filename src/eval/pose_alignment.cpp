@@ -44,18 +44,21 @@ AlignedView align_view(const model::Gaussians& gaussians, const core::Camera& ca
                        const AlignOptions& options) {
   core::require(options.steps >= 0 && options.step_px > 0,
                 "pose alignment: expected steps >= 0 and a positive step");
-  auto render = [&](const torch::Tensor& rotation, const torch::Tensor& shift) {
+  auto move = [&](const torch::Tensor& rotation, const torch::Tensor& shift) {
     model::Gaussians moved = gaussians;
     std::tie(moved.means, moved.quats) =
         model::move_rigidly(gaussians.means, gaussians.quats, rotation, shift, camera.center());
-    return model::render_gaussians(moved, camera, background).image;
+    return moved;
+  };
+  auto render = [&](const model::Gaussians& g) {
+    return model::render_gaussians(g, camera, background).image;
   };
   auto l1 = [&](const torch::Tensor& image) { return (image - truth).abs().mean(); };
 
   AlignedView result;
   {
     torch::NoGradGuard no_grad;
-    result.image = model::render_gaussians(gaussians, camera, background).image;
+    result.image = render(gaussians);
     result.l1_before = result.l1_after = l1(result.image).item<double>();
   }
   const double focal = 0.5 * (camera.intrinsics.fx + camera.intrinsics.fy);
@@ -74,21 +77,20 @@ AlignedView align_view(const model::Gaussians& gaussians, const core::Camera& ca
     static_cast<torch::optim::AdamOptions&>(adam.param_groups()[0].options())
         .lr(options.step_px * anneal);
     adam.zero_grad();
-    l1(render(rotation(), shift())).backward();
+    l1(render(move(rotation(), shift()))).backward();
     adam.step();
   }
 
   torch::NoGradGuard no_grad;
-  const torch::Tensor image = render(rotation(), shift());
+  const model::Gaussians moved = move(rotation(), shift());
+  const torch::Tensor image = render(moved);
   const double after = l1(image).item<double>();
   if (!(after < result.l1_before)) return result;
   result.image = image;
   result.moved = true;
   result.l1_after = after;
   const auto [before, inside] = project(gaussians.means, camera);
-  const torch::Tensor moved_means = std::get<0>(
-      model::move_rigidly(gaussians.means, gaussians.quats, rotation(), shift(), camera.center()));
-  const torch::Tensor after_px = project(moved_means, camera).first;
+  const torch::Tensor after_px = project(moved.means, camera).first;
   if (inside.any().item<bool>())
     result.motion_px = (after_px - before).norm(2, 1).masked_select(inside).mean().item<double>();
   return result;
