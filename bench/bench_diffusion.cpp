@@ -2,6 +2,7 @@
 // and DDIM inference on a whole small view, at the default width and half it.
 #include <benchmark/benchmark.h>
 
+#include "core/early_setup.h"
 #include "core/threads.h"
 #include "model/diffusion.h"
 

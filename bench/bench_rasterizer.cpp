@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/early_setup.h"
 #include "core/threads.h"
 #include "render/blend.h"
 #include "render/project.h"

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "bench_timing.h"
+#include "core/early_setup.h"
 #include "core/threads.h"
 #include "render/rasterize.h"
 #include "render/sh.h"

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "bench_timing.h"
+#include "core/early_setup.h"
 #include "core/threads.h"
 #include "model/ssim.h"
 #include "model/ssim_fused.h"

@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "core/early_setup.h"
 #include "core/stage_timer.h"
 #include "core/threads.h"
 #include "synth/generate.h"

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "app/registry.h"
+#include "core/early_setup.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/threads.h"
@@ -41,7 +42,8 @@ int main(int argc, char** argv) {
   int threads = 0;
   bool quiet = false, verbose = false;
   app.add_option("--threads", threads,
-                 "Worker threads (default: $DDHGS_THREADS or all cores; at most 4 per core)");
+                 "Worker threads (default: $DDHGS_THREADS, else the CPUs this process may use: its "
+                 "affinity mask and cgroup CPU quota; at most 4 per CPU)");
   app.add_flag("-q,--quiet", quiet, "Only print warnings and errors");
   app.add_flag("-v,--verbose", verbose, "Print debugging details");
 
@@ -70,6 +72,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   core::configure_threads(threads);
+  core::log_debug(core::thread_summary());
   try {
     for (auto& [sub, run] : actions)
       if (sub->parsed()) return run();

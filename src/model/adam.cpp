@@ -1,10 +1,9 @@
 #include "model/adam.h"
 
-#include <ATen/Parallel.h>
-
 #include <cmath>
 
 #include "core/error.h"
+#include "core/parallel.h"
 
 namespace ddhgs::model {
 
@@ -18,7 +17,7 @@ void fused_adam_update(float* param, const float* grad, float* exp_avg, float* e
   const float inv_sqrt_bias2 = float(1.0 / std::sqrt(bias2));
   const float eps = float(options.eps);
   // Large grains: the loop is memory bound and tiny chunks only add overhead.
-  at::parallel_for(0, n, 1 << 15, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, n, 1 << 15, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       const float g = grad[i];
       const float m = exp_avg[i] * beta1 + g * one_minus_beta1;

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "core/error.h"
+#include "core/threads.h"
 
 namespace ddhgs::model {
 
@@ -300,6 +301,7 @@ torch::Tensor ddim_sample(const NoisePredictor& predictor, const NoiseSchedule& 
 torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& schedule,
                      const torch::Tensor& cond, const SamplerOptions& options) {
   options.validate(schedule.steps, "sampler options");
+  core::TorchThreads torch_threads;  // the U-Net's convolutions
   auto one = [&](uint64_t seed) {
     if (options.method == SamplerMethod::Ddpm)
       return ddpm_sample(predictor, schedule, cond, seed, options.start_strength);

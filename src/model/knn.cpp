@@ -1,7 +1,5 @@
 #include "model/knn.h"
 
-#include <ATen/Parallel.h>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -9,6 +7,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/parallel.h"
 
 namespace ddhgs::model {
 
@@ -88,7 +87,7 @@ torch::Tensor mean_sq_distance_to_neighbours(const torch::Tensor& xyz_in, int k)
   const int64_t kk = std::min<int64_t>(k, n - 1);
   const int64_t max_ring = std::max({g.dims[0], g.dims[1], g.dims[2]});
 
-  at::parallel_for(0, n, 256, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, n, 256, [&](int64_t begin, int64_t end) {
     std::vector<double> best;  // sorted ascending, at most kk squared distances
     for (int64_t i = begin; i < end; ++i) {
       best.clear();

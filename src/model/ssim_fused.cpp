@@ -1,11 +1,10 @@
 #include "model/ssim_fused.h"
 
-#include <ATen/Parallel.h>
-
 #include <string>
 
 #include "core/buffer_pool.h"
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/stage_timer.h"
 #include "model/ssim.h"
 #include "model/ssim_kernel.h"
@@ -25,7 +24,7 @@ ssim_kernel::Images images_of(const Tensor& render, const Tensor& target) {
 // grad <- ssim_weight * grad + l1_weight * sign(render - target), in place.
 void combine(float* grad, const float* render, const float* target, int64_t n, float ssim_weight,
              float l1_weight) {
-  at::parallel_for(0, n, 1 << 16, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, n, 1 << 16, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       const float d = render[i] - target[i];
       // sign(0) = 0, as the derivative LibTorch gives abs at 0.

@@ -19,13 +19,12 @@
 // bands. (Tiles of 128 columns, whose rings fit L2, measured no faster.)
 #include "model/ssim_kernel.h"
 
-#include <ATen/Parallel.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <vector>
 
+#include "core/parallel.h"
 #include "model/ssim.h"
 
 namespace ddhgs::model::ssim_kernel {
@@ -265,7 +264,7 @@ Sums run_blocks(const Images& im, float* grad) {
   const int64_t wv = im.width - (kR - 1), hv = im.height - (kR - 1);
   const float inv_m = float(1.0 / (double(im.bands) * double(hv) * double(wv)));
   std::vector<Sums> partial(static_cast<size_t>(items));
-  at::parallel_for(0, items, 1, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, items, 1, [&](int64_t begin, int64_t end) {
     Scratch<V>& s = Scratch<V>::get();
     s.in.resize(size_t(kR * im.width * 2));
     s.v.resize(size_t(im.width * kMoments));

@@ -1,14 +1,12 @@
 #include "render/blend.h"
 
-#include <ATen/Parallel.h>
-#include <omp.h>
-
 #include <atomic>
 #include <cmath>
 #include <cstring>
 #include <memory>
 #include <vector>
 
+#include "core/parallel.h"
 #include "render/aligned.h"
 #include "render/channel_kernels.h"
 #include "render/pair_grads.h"
@@ -273,54 +271,58 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
   float* depth = out.depth.data_ptr<float>();
   float* final_T = keep_final_T ? out.final_T.data_ptr<float>() : nullptr;
   const int lists = int(bins.thread_tiles.size());
-  int64_t pairs = 0;
   [[maybe_unused]] const bool use_wide = wide();
 
-#pragma omp parallel num_threads(lists) reduction(+ : pairs)
-  for (int list = omp_get_thread_num(); list < lists; list += omp_get_num_threads()) {
-    TileScratch& s = scratch();
-    const std::vector<int32_t>& tiles = bins.thread_tiles[list];
-    for (size_t i = 0; i < tiles.size(); ++i) {
-      const int tile = tiles[i];
-      if (i + 1 < tiles.size()) prefetch_tile_head(ranked, bins, tiles[i + 1]);
-      s.start(bins, tile, width, height, np);
-      float dsum[kPixels] = {};
-      const int32_t end = bins.offsets[tile + 1];
-      for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
-        const int32_t* ranks = bins.ranks.data() + b;
-        const int m = std::min<int32_t>(kChunk, end - b);
-        blend_chunk(s, ranked, ranks, m, end - b, np, false);
-        for (int p = 0; p < kPixels; ++p) {
-          const uint64_t bits = s.pmask[p];
-          if (bits == 0) continue;
-          pairs += __builtin_popcountll(bits);
+  std::atomic<int64_t> total_pairs{0};
+  // One chunk per tile list: any thread may run any list.
+  core::parallel_for(0, lists, 1, [&](int64_t list_begin, int64_t list_end) {
+    for (int64_t list = list_begin; list < list_end; ++list) {
+      int64_t pairs = 0;
+      TileScratch& s = scratch();
+      const std::vector<int32_t>& tiles = bins.thread_tiles[list];
+      for (size_t i = 0; i < tiles.size(); ++i) {
+        const int tile = tiles[i];
+        if (i + 1 < tiles.size()) prefetch_tile_head(ranked, bins, tiles[i + 1]);
+        s.start(bins, tile, width, height, np);
+        float dsum[kPixels] = {};
+        const int32_t end = bins.offsets[tile + 1];
+        for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
+          const int32_t* ranks = bins.ranks.data() + b;
+          const int m = std::min<int32_t>(kChunk, end - b);
+          blend_chunk(s, ranked, ranks, m, end - b, np, false);
+          for (int p = 0; p < kPixels; ++p) {
+            const uint64_t bits = s.pmask[p];
+            if (bits == 0) continue;
+            pairs += __builtin_popcountll(bits);
 #if defined(__AVX512F__)
-          if (use_wide)
-            kernels::wide_mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, &bits, 1,
-                                    s.weight + p, kPixels, s.touched[p]);
-          else
+            if (use_wide)
+              kernels::wide_mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, &bits, 1,
+                                      s.weight + p, kPixels, s.touched[p]);
+            else
 #endif
-            kernels::mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, &bits, 1,
-                               s.weight + p, kPixels, s.touched[p]);
-          s.touched[p] = 1;
-          dsum[p] += depth_sum(bits, s.weight + p, s.depth);
+              kernels::mask_axpy(s.acc.data() + size_t(p) * np, s.col_rows, np, &bits, 1,
+                                 s.weight + p, kPixels, s.touched[p]);
+            s.touched[p] = 1;
+            dsum[p] += depth_sum(bits, s.weight + p, s.depth);
+          }
         }
+        for (int y = s.y0; y < s.y1; ++y)
+          for (int x = s.x0; x < s.x1; ++x) {
+            const int p = s.pixel(x, y);
+            const int64_t o = int64_t(y) * width + x;
+            float* dst = img + o * n;
+            const float t = s.T[p];
+            kernels::write_pixel(dst, s.touched[p] ? s.pix_rows[p] : nullptr, t, bg, n);
+            alpha[o] = 1.0f - t;
+            depth[o] = dsum[p];
+            if (final_T) final_T[o] = t;
+          }
       }
-      for (int y = s.y0; y < s.y1; ++y)
-        for (int x = s.x0; x < s.x1; ++x) {
-          const int p = s.pixel(x, y);
-          const int64_t o = int64_t(y) * width + x;
-          float* dst = img + o * n;
-          const float t = s.T[p];
-          kernels::write_pixel(dst, s.touched[p] ? s.pix_rows[p] : nullptr, t, bg, n);
-          alpha[o] = 1.0f - t;
-          depth[o] = dsum[p];
-          if (final_T) final_T[o] = t;
-        }
+      kernels::end_streaming_writes();
+      total_pairs += pairs;
     }
-    kernels::end_streaming_writes();
-  }
-  out.pairs = pairs;
+  });
+  out.pairs = total_pairs;
   return out;
 }
 
@@ -354,95 +356,96 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
   const float* final_T = fwd.final_T.data_ptr<float>();
   [[maybe_unused]] const bool use_wide = wide();
 
-#pragma omp parallel num_threads(lists)
-  for (int list = omp_get_thread_num(); list < lists; list += omp_get_num_threads()) {
-    TileScratch& s = scratch();
-    float* gcol = col_buf[list];
-    float* ggeo = geo_buf[list];
-    float* gbg = bg_buf[list];
-    std::fill(gcol, gcol + visible * np, 0.0f);
-    std::fill(ggeo, ggeo + visible * kSlots, 0.0f);
-    std::fill(gbg, gbg + n, 0.0f);
-    const std::vector<int32_t>& tiles = bins.thread_tiles[list];
-    for (size_t i = 0; i < tiles.size(); ++i) {
-      const int tile = tiles[i];
-      if (i + 1 < tiles.size()) prefetch_tile_head(ranked, bins, tiles[i + 1]);
-      s.start(bins, tile, width, height, np);
-      // Per pixel: dL/dD, final T, dL/dT_final and the total sum_j g_j w_j,
-      // so the suffix sum each pair needs is total - prefix (no reverse pass).
-      float dd[kPixels] = {}, tf[kPixels] = {}, dtf[kPixels] = {};
-      double total[kPixels] = {}, prefix[kPixels] = {};
-      for (int y = s.y0; y < s.y1; ++y)
-        for (int x = s.x0; x < s.x1; ++x) {
-          const int p = s.pixel(x, y);
-          const int64_t o = int64_t(y) * width + x;
-          const float* dc = dimg + o * n;
-          float* row = s.acc.data() + size_t(p) * np;
-          std::copy(dc, dc + n, row);
-          std::fill(row + n, row + np, 0.0f);  // padding meets zero colour padding
-          tf[p] = final_T[o];
-          dd[p] = ddepth ? ddepth[o] : 0.0f;
-          const kernels::PixelSums sums = kernels::pixel_sums(dc, img + o * n, tf[p], bg, n, gbg);
-          total[p] = double(dd[p]) * dep[o] + sums.dot_image;
-          dtf[p] = float((dalpha ? -double(dalpha[o]) : 0.0) + sums.dot_background);
-        }
-      const int32_t end = bins.offsets[tile + 1];
-      for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
-        const int32_t* ranks = bins.ranks.data() + b;
-        const int m = std::min<int32_t>(kChunk, end - b);
-        blend_chunk(s, ranked, ranks, m, end - b, np, true, gcol);
-#if defined(__AVX512F__)
-        if (use_wide)
-          wide_colour_terms(s, ranks, m, np, gcol);
-        else
-#endif
-          colour_terms(s, ranks, m, np, gcol);
-        uint64_t group_members[kGroups];
-        for (int gr = 0; gr < kGroups; ++gr) {
-          uint64_t members = 0;
-          for (int i = 0; i < kRowLanes; ++i) members |= s.pmask[gr * kRowLanes + i];
-          group_members[gr] = members;
-        }
-        // The geometry gradients, one 8-pixel group at a time.
-        std::memset(s.geo, 0, sizeof(SlotLanes) * size_t(m));
-        const Splat* splats[kChunk];
-        for (int k = 0; k < m; ++k) splats[k] = &ranked.splats[ranks[k]];
-        for (int gr = 0; gr < kGroups; ++gr) {
-          const int p = gr * kRowLanes;
-          if (group_members[gr] == 0) continue;
-          const GroupPairs in{s.weight + p,
-                              s.raw + p,
-                              s.trans + p,
-                              s.gdot + p,
-                              kPixels,
-                              &s.gmask[0][0],
-                              kPixels / 64,
-                              p / 64,
-                              p % 64,
-                              dd + p,
-                              tf + p,
-                              dtf + p,
-                              total + p,
-                              prefix + p,
-                              float(s.x0 + gr % kGroupsPerRow * kRowLanes) + 0.5f,
-                              float(s.y0 + gr / kGroupsPerRow) + 0.5f};
-          group_pair_grads(splats, group_members[gr], in, s.geo);
-        }
-        for (int k = 0; k < m; ++k) {
-          float geo[kSlots];
-          for (int q = 0; q < kSlots; ++q) {
-            float sum = 0;
-            for (int i = 0; i < kRowLanes; ++i) sum += s.geo[k][q][i];
-            geo[q] = sum;
+  core::parallel_for(0, lists, 1, [&](int64_t list_begin, int64_t list_end) {
+    for (int64_t list = list_begin; list < list_end; ++list) {
+      TileScratch& s = scratch();
+      float* gcol = col_buf[list];
+      float* ggeo = geo_buf[list];
+      float* gbg = bg_buf[list];
+      std::fill(gcol, gcol + visible * np, 0.0f);
+      std::fill(ggeo, ggeo + visible * kSlots, 0.0f);
+      std::fill(gbg, gbg + n, 0.0f);
+      const std::vector<int32_t>& tiles = bins.thread_tiles[list];
+      for (size_t i = 0; i < tiles.size(); ++i) {
+        const int tile = tiles[i];
+        if (i + 1 < tiles.size()) prefetch_tile_head(ranked, bins, tiles[i + 1]);
+        s.start(bins, tile, width, height, np);
+        // Per pixel: dL/dD, final T, dL/dT_final and the total sum_j g_j w_j,
+        // so the suffix sum each pair needs is total - prefix (no reverse pass).
+        float dd[kPixels] = {}, tf[kPixels] = {}, dtf[kPixels] = {};
+        double total[kPixels] = {}, prefix[kPixels] = {};
+        for (int y = s.y0; y < s.y1; ++y)
+          for (int x = s.x0; x < s.x1; ++x) {
+            const int p = s.pixel(x, y);
+            const int64_t o = int64_t(y) * width + x;
+            const float* dc = dimg + o * n;
+            float* row = s.acc.data() + size_t(p) * np;
+            std::copy(dc, dc + n, row);
+            std::fill(row + n, row + np, 0.0f);  // padding meets zero colour padding
+            tf[p] = final_T[o];
+            dd[p] = ddepth ? ddepth[o] : 0.0f;
+            const kernels::PixelSums sums = kernels::pixel_sums(dc, img + o * n, tf[p], bg, n, gbg);
+            total[p] = double(dd[p]) * dep[o] + sums.dot_image;
+            dtf[p] = float((dalpha ? -double(dalpha[o]) : 0.0) + sums.dot_background);
           }
-          // d alpha / d o = exp(-power) = raw / o; Gaussians without pairs
-          // (possibly o = 0) keep their zero.
-          if (geo[kOpacity] != 0) geo[kOpacity] /= ranked.splats[ranks[k]].opacity;
-          for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ranks[k]) * kSlots + q] += geo[q];
+        const int32_t end = bins.offsets[tile + 1];
+        for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
+          const int32_t* ranks = bins.ranks.data() + b;
+          const int m = std::min<int32_t>(kChunk, end - b);
+          blend_chunk(s, ranked, ranks, m, end - b, np, true, gcol);
+#if defined(__AVX512F__)
+          if (use_wide)
+            wide_colour_terms(s, ranks, m, np, gcol);
+          else
+#endif
+            colour_terms(s, ranks, m, np, gcol);
+          uint64_t group_members[kGroups];
+          for (int gr = 0; gr < kGroups; ++gr) {
+            uint64_t members = 0;
+            for (int i = 0; i < kRowLanes; ++i) members |= s.pmask[gr * kRowLanes + i];
+            group_members[gr] = members;
+          }
+          // The geometry gradients, one 8-pixel group at a time.
+          std::memset(s.geo, 0, sizeof(SlotLanes) * size_t(m));
+          const Splat* splats[kChunk];
+          for (int k = 0; k < m; ++k) splats[k] = &ranked.splats[ranks[k]];
+          for (int gr = 0; gr < kGroups; ++gr) {
+            const int p = gr * kRowLanes;
+            if (group_members[gr] == 0) continue;
+            const GroupPairs in{s.weight + p,
+                                s.raw + p,
+                                s.trans + p,
+                                s.gdot + p,
+                                kPixels,
+                                &s.gmask[0][0],
+                                kPixels / 64,
+                                p / 64,
+                                p % 64,
+                                dd + p,
+                                tf + p,
+                                dtf + p,
+                                total + p,
+                                prefix + p,
+                                float(s.x0 + gr % kGroupsPerRow * kRowLanes) + 0.5f,
+                                float(s.y0 + gr / kGroupsPerRow) + 0.5f};
+            group_pair_grads(splats, group_members[gr], in, s.geo);
+          }
+          for (int k = 0; k < m; ++k) {
+            float geo[kSlots];
+            for (int q = 0; q < kSlots; ++q) {
+              float sum = 0;
+              for (int i = 0; i < kRowLanes; ++i) sum += s.geo[k][q][i];
+              geo[q] = sum;
+            }
+            // d alpha / d o = exp(-power) = raw / o; Gaussians without pairs
+            // (possibly o = 0) keep their zero.
+            if (geo[kOpacity] != 0) geo[kOpacity] /= ranked.splats[ranks[k]].opacity;
+            for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ranks[k]) * kSlots + q] += geo[q];
+          }
         }
       }
     }
-  }
+  });
 
   // Sum the lists in a fixed order and scatter ranks back to Gaussian order.
   thread_local c10::Storage d_colors_cache;
@@ -452,7 +455,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
   float* dcol = d_colors.data_ptr<float>();
   float* dgeo = d_geo.data_ptr<float>();
   const int32_t* order = bins.order.data();
-  at::parallel_for(0, visible, 1024, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, visible, 1024, [&](int64_t begin, int64_t end) {
     for (int64_t r = begin; r < end; ++r) {
       float* dc = dcol + int64_t(order[r]) * n;
       float* dg = dgeo + int64_t(order[r]) * kSlots;

@@ -1,10 +1,9 @@
 #include "render/project.h"
 
-#include <ATen/Parallel.h>
-
 #include <cmath>
 
 #include "core/mat.h"
+#include "core/parallel.h"
 #include "render/tiles.h"
 
 namespace ddhgs::render {
@@ -178,7 +177,7 @@ Projected project_forward(const torch::Tensor& means, const torch::Tensor& log_s
   const auto lim = jacobian_clamp_limits(cam);
   const int tiles_x = tiles_along(cam.width), tiles_y = tiles_along(cam.height);
 
-  at::parallel_for(0, count, 2048, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, count, 2048, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       op[i] = float(1.0 / (1.0 + std::exp(-double(lo[i]))));
       const float* mi = m + 3 * i;
@@ -325,7 +324,7 @@ ProjectGrads project_backward(const torch::Tensor& means, const torch::Tensor& l
   float* glo = out.logit_opacities.data_ptr<float>();
   const auto lim = jacobian_clamp_limits(cam);
 
-  at::parallel_for(0, count, 2048, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, count, 2048, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       const double o = op[i];
       glo[i] = float(dop[i] * o * (1 - o));  // sigmoid

@@ -1,6 +1,6 @@
 #include "render/ranked.h"
 
-#include <ATen/Parallel.h>
+#include "core/parallel.h"
 
 #include <algorithm>
 #include <cmath>
@@ -31,7 +31,7 @@ const Ranked& rank_gaussians(const Projected& p, const torch::Tensor& colors, co
   for (int32_t r = 0; r < int32_t(visible); ++r) rank_of[order[r]] = r;
   const int32_t* rank = rank_of.data();
   const SplatExtent* extents = bins.extents.data();
-  at::parallel_for(0, colors.size(0), 2048, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, colors.size(0), 2048, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       const int64_t r = rank[i];
       if (r < 0) continue;

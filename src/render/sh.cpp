@@ -3,12 +3,11 @@
 // and reused for every band.
 #include "render/sh.h"
 
-#include <ATen/Parallel.h>
-
 #include <type_traits>
 
 #include "core/buffer_pool.h"
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/stage_timer.h"
 #include "render/rasterize.h"
 
@@ -64,7 +63,7 @@ inline T band_value(const ShInputs<T>& in, const ShShapes& s, int64_t g, int64_t
 template <int Degree, typename T>
 void forward_kernel(const ShInputs<T>& in, const ShShapes& s, T* out) {
   constexpr int K = sh_coeff_count(Degree);
-  at::parallel_for(0, s.G, 64, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, s.G, 64, [&](int64_t begin, int64_t end) {
     for (int64_t g = begin; g < end; ++g) {
       T dir[3], Y[16];
       view_direction(in.means + 3 * g, in.center, dir);
@@ -146,7 +145,7 @@ void backward_kernel(const ShInputs<T>& in, const ShShapes& s, const T* grad_out
                      const ShGrads<T>& gr) {
   const int64_t chunks = (s.G + kChunk - 1) / kChunk;
   const int64_t row = s.N * s.rest_stride;  // rest gradient floats per Gaussian
-  at::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
+  core::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
     std::vector<T>& block = sink_block<T>();
     if (gr.rest_sink) block.resize(size_t(kSinkRows * row));
     for (int64_t chunk = chunk_begin; chunk < chunk_end; ++chunk) {

@@ -1,12 +1,11 @@
 #include "synth/render.h"
 
-#include <ATen/Parallel.h>
-
 #include <algorithm>
 #include <cmath>
 
 #include "core/distortion.h"
 #include "core/error.h"
+#include "core/parallel.h"
 
 namespace ddhgs::synth {
 
@@ -119,7 +118,7 @@ torch::Tensor render_clean(const PlantScene& scene, const SpectralSetup& setup,
   const Lighting& light = setup.lighting;
   const Vec3 l = light.to_light.normalized();
   const float* table = setup.reflectance.data();
-  at::parallel_for(0, h, 1, [&](int64_t y0, int64_t y1) {
+  core::parallel_for(0, h, 1, [&](int64_t y0, int64_t y1) {
     std::vector<float> acc(n);
     for (int64_t y = y0; y < y1; ++y)
       for (int x = 0; x < w; ++x) {

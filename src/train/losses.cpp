@@ -2,8 +2,7 @@
 
 #include <cmath>
 
-#include <ATen/Parallel.h>
-
+#include "core/parallel.h"
 #include "core/stage_timer.h"
 #include "model/ssim.h"
 #include "model/ssim_fused.h"
@@ -48,7 +47,7 @@ torch::Tensor fused(const LossInputs& in, const std::string& which) {
 double squared_error_sum(const float* a, const float* b, int64_t n) {
   constexpr int64_t kChunk = 1 << 16;
   std::vector<double> partial(size_t((n + kChunk - 1) / kChunk), 0.0);
-  at::parallel_for(0, int64_t(partial.size()), 1, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, int64_t(partial.size()), 1, [&](int64_t begin, int64_t end) {
     for (int64_t c = begin; c < end; ++c) {
       double sum = 0;
       for (int64_t i = c * kChunk, e = std::min(n, i + kChunk); i < e; ++i) {

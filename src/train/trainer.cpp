@@ -6,11 +6,13 @@
 #include <csignal>
 #include <cstdio>
 #include <functional>
+#include <optional>
 
 #include "core/buffer_pool.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/stage_timer.h"
+#include "core/threads.h"
 #include "eval/evaluate.h"
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
@@ -250,6 +252,9 @@ int Trainer::view_for(int64_t iteration) const {
 
 json Trainer::step(int64_t iteration) {
   core::StageScope step_scope("step (other)");
+  // The denoiser's convolutions are large enough for LibTorch's own threads.
+  std::optional<core::TorchThreads> torch_threads;
+  if (diffusion_ && iteration > diffusion_->options().warmup) torch_threads.emplace();
   set_learning_rates(iteration);
   auto& g = state_.gaussians;
   if (every(iteration, schedule_.sh_degree_every) && g.active_sh_degree < g.max_sh_degree())
@@ -335,6 +340,7 @@ int64_t Trainer::total_steps() const {
 }
 
 json Trainer::finetune_step(int64_t iteration) {
+  core::TorchThreads torch_threads;  // the denoiser's convolutions
   if (!finetuning_)
     finetuning_ = std::make_unique<DenoiserFinetuning>(*diffusion_, *scene_, [this](int v) {
       torch::NoGradGuard no_grad;
@@ -397,6 +403,8 @@ void Trainer::write_outputs(double seconds) {
       {"sh_degree", degree},
       {"bytes_per_gaussian", model::training_bytes_per_gaussian(scene_->bands(), degree)},
       {"peak_rss_mib", peak_rss_mib()},
+      {"threads", core::thread_count()},
+      {"thread_source", core::thread_source()},
       {"densify_added", state_.counters.densify_added},
       {"densify_removed", state_.counters.densify_removed}};
   if (offsets.defined()) {

@@ -80,6 +80,9 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
   EXPECT_EQ(summary["iterations"], 200);
   EXPECT_EQ(summary["bands"], 8);
   EXPECT_EQ(summary["bytes_per_gaussian"], (11 + 8 * 16) * 16);
+  // ctest sets DDHGS_THREADS=2 (tests/CMakeLists.txt).
+  EXPECT_EQ(summary["threads"], 2);
+  EXPECT_EQ(summary["thread_source"], "DDHGS_THREADS");
   // Fixed bars, far below what the run reaches but far above an untrained model.
   EXPECT_GT(summary["test_psnr_clean"].get<double>(), 19.0) << summary.dump();
   EXPECT_GT(summary["test_psnr"].get<double>(), 18.0) << summary.dump();

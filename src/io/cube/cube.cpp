@@ -1,12 +1,11 @@
 // Cube format dispatch and the conversions shared by every cube reader.
 #include "io/cube/cube.h"
 
-#include <ATen/Parallel.h>
-
 #include <cctype>
 
 #include "core/buffer_pool.h"
 #include "core/error.h"
+#include "core/parallel.h"
 #include "io/cube/cube_formats.h"
 
 namespace ddhgs::io {
@@ -93,7 +92,7 @@ void transpose_batch(const torch::Tensor& in, torch::Tensor& out) {
   const T* src = static_cast<const T*>(in.data_ptr());
   T* dst = static_cast<T*>(out.data_ptr());
   int64_t blocks = (cols + 31) / 32;
-  at::parallel_for(0, n * blocks, 1, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, n * blocks, 1, [&](int64_t begin, int64_t end) {
     for (int64_t task = begin; task < end; ++task) {
       int64_t i = task / blocks, c0 = (task % blocks) * 32;
       transpose_columns(src + i * rows * cols, dst + i * rows * cols, rows, cols, c0,
@@ -267,7 +266,7 @@ torch::Tensor samples_to_float(const torch::Tensor& raw, float scale) {
   torch::Tensor out = core::pooled_empty(raw.sizes());
   const T* src = static_cast<const T*>(raw.data_ptr());
   float* dst = out.data_ptr<float>();
-  at::parallel_for(0, raw.numel(), 1 << 16, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, raw.numel(), 1 << 16, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) dst[i] = float(src[i]) / scale;
   });
   return out;

@@ -1,6 +1,5 @@
 #include "io/undistort/undistort.h"
 
-#include <ATen/Parallel.h>
 #include <c10/util/Half.h>
 
 #include <algorithm>
@@ -10,6 +9,7 @@
 
 #include "core/distortion.h"
 #include "core/error.h"
+#include "core/parallel.h"
 #include "io/cube/cube_formats.h"
 
 namespace ddhgs::io {
@@ -32,7 +32,7 @@ template <typename T, typename Acc>
 void remap(const T* src, T* dst, int64_t pixels, int64_t bands, int64_t width,
            const std::vector<int64_t>& top_left, const std::vector<double>& wx,
            const std::vector<double>& wy) {
-  at::parallel_for(0, pixels, 256, [&](int64_t begin, int64_t end) {
+  core::parallel_for(0, pixels, 256, [&](int64_t begin, int64_t end) {
     for (int64_t p = begin; p < end; ++p) {
       const Acc ax = wx[size_t(p)], ay = wy[size_t(p)];
       const Acc w00 = (1 - ax) * (1 - ay), w01 = ax * (1 - ay), w10 = (1 - ax) * ay, w11 = ax * ay;
@@ -68,7 +68,7 @@ void Undistortion::build_table() const {
   top_left_.resize(size_t(w * h));
   weight_x_.resize(size_t(w * h));
   weight_y_.resize(size_t(w * h));
-  at::parallel_for(0, h, 8, [&](int64_t row_begin, int64_t row_end) {
+  core::parallel_for(0, h, 8, [&](int64_t row_begin, int64_t row_end) {
     for (int64_t j = row_begin; j < row_end; ++j)
       for (int64_t i = 0; i < w; ++i) {
         core::Point2 n{(i + 0.5 - pinhole_.cx) / pinhole_.fx,
