@@ -229,15 +229,21 @@ TEST(OutputFolder, ReplacementKeepsTheEarlierOutputAsideUntilCommitted) {
   EXPECT_FALSE(again.replacing());
 }
 
-TEST(OutputFolder, StaleTemporariesOfDeadProcessesAreRemoved) {
+TEST(OutputFolder, StaleTemporariesAreRemovedOnlyWhereTheyAreProvablyOurs) {
   const fs::path dir = test::temp_dir("output_stale");
   const std::string dead = std::to_string(dead_pid());
   const std::string alive = std::to_string(::getppid());
-  write_file_atomically(dir / ("." + std::string("ckpt.pt.tmp-") + dead + "-0"), "5 MB");
+  // Beside outputs, in a folder ddhgs did not write: a name proves nothing.
+  write_file_atomically(dir / (".ckpt.pt.tmp-" + dead + "-0"), "5 MB");
+  write_file_atomically(dir / (".notes.tmp-999999-1"), "a user's notes");
   write_file_atomically(dir / (".ckpt.pt.tmp-" + alive + "-0"), "being written");
   fs::create_directories(dir / (".scene.tmp-" + dead));
-  mark_output_folder(dir / (".scene.tmp-" + dead), OutputKind::Scene);
-  fs::create_directories(dir / (".photos.tmp-" + dead));  // not ours: not empty, no marker
+  mark_output_folder(dir / (".scene.tmp-" + dead), OutputKind::Scene);  // marker only: ours
+  fs::create_directories(dir / (".empty.tmp-" + dead));
+  fs::create_directories(dir / (".report.tmp-" + dead));  // a marker and results: may be a copy
+  mark_output_folder(dir / (".report.tmp-" + dead), OutputKind::Report);
+  write_file_atomically(dir / (".report.tmp-" + dead) / "index.html", "x");
+  fs::create_directories(dir / (".photos.tmp-" + dead));
   write_file_atomically(dir / (".photos.tmp-" + dead) / "a.jpg", "x");
   write_file_atomically(dir / (".notes.tmp-" + dead), "a file named like a folder's temporary");
   write_file_atomically(dir / "keep.txt", "user file");
@@ -245,8 +251,18 @@ TEST(OutputFolder, StaleTemporariesOfDeadProcessesAreRemoved) {
   // process scans each folder once; this test calls the scan directly).
   remove_stale_temporaries(dir);
   EXPECT_EQ(listing(dir),
-            (std::vector<std::string>{".ckpt.pt.tmp-" + alive + "-0", ".notes.tmp-" + dead,
-                                      ".photos.tmp-" + dead, "keep.txt"}));
+            (std::vector<std::string>{".ckpt.pt.tmp-" + alive + "-0", ".ckpt.pt.tmp-" + dead + "-0",
+                                      ".notes.tmp-" + dead, ".notes.tmp-999999-1",
+                                      ".photos.tmp-" + dead, ".report.tmp-" + dead, "keep.txt"}));
+  // Inside an output of ddhgs's own, its file temporaries go.
+  const fs::path run = dir / "run";
+  fs::create_directories(run);
+  mark_output_folder(run, OutputKind::Run);
+  write_file_atomically(run / (".checkpoint.pt.tmp-" + dead + "-3"), "half a checkpoint");
+  write_file_atomically(run / (".checkpoint.pt.tmp-" + alive + "-3"), "being written");
+  remove_stale_temporaries(run);
+  EXPECT_EQ(listing(run),
+            (std::vector<std::string>{".checkpoint.pt.tmp-" + alive + "-3", ".ddhgs-output"}));
   EXPECT_EQ(parse_temporary_name(".a.tmp-12-3")->owner, 12);
   EXPECT_TRUE(parse_temporary_name(".a.tmp-12-3")->is_file);
   EXPECT_FALSE(parse_temporary_name(".a.old-12")->is_file);
@@ -262,6 +278,22 @@ TEST(OutputFolder, LockRefusesASecondWriterAndNamesTheFirst) {
     EXPECT_TRUE(contains(e, "in use by ddhgs train (pid " + std::to_string(::getpid()) + ")")) << e;
   }
   EXPECT_NO_THROW(FolderLock(dir, "eval"));  // released with its owner
+}
+
+// A lock file linked to someone else's file: refused, the file untouched.
+TEST(OutputFolder, LockNeverFollowsALink) {
+  const fs::path dir = test::temp_dir("output_lock_link");
+  const fs::path run = dir / "run", victim = dir / "victim.txt";
+  fs::create_directories(run);
+  write_file_atomically(victim, "another user's file\n");
+  fs::create_symlink(victim, run / kLockFile);
+  const std::string e = error_of([&] { FolderLock lock(run, "eval"); });
+  EXPECT_TRUE(contains(e, "is a symbolic link")) << e;
+  EXPECT_TRUE(contains(e, (run / kLockFile).string())) << e;
+  EXPECT_EQ(read_file(victim), "another user's file\n");
+  fs::remove(run / kLockFile);
+  fs::create_directory(run / kLockFile);  // not a file at all
+  EXPECT_TRUE(contains(error_of([&] { FolderLock lock(run, "eval"); }), "not a regular file"));
 }
 
 }  // namespace

@@ -171,11 +171,24 @@ TEST(EarlyChecks, OutputsThatWouldOverwriteAnInputAreRefused) {
   EXPECT_EQ(fs::file_size(dir / "rgb.splat") % 32, 0u);
 }
 
+// A downscale that leaves next to nothing of the views names the flag and
+// the views' size (it was LibTorch's "max(): Expected reduction dim ...").
+TEST(EarlyChecks, ADownscaleLargerThanTheViewsIsNamed) {
+  const fs::path dir = test::temp_dir("early_downscale");
+  const std::string scene = tiny_scene().string();
+  for (const char* d : {"1000", "25"}) {  // the views are 32 x 24 px
+    expect_refused("-q train " + scene + " --out " + (dir / "run").string() + " --downscale " + d,
+                   {std::string("--downscale ") + d, "px", "at most"});
+    expect_refused("info " + scene + " --downscale " + d, {std::string("--downscale ") + d});
+  }
+  EXPECT_FALSE(fs::exists(dir / "run"));
+}
+
 TEST(EarlyChecks, ThousandsOfThreadsAreCapped) {
   std::string out;
   const auto start = std::chrono::steady_clock::now();
   EXPECT_EQ(ddhgs("--threads 2000 info " + tiny_scene().string(), &out), 0) << out;
-  EXPECT_NE(out.find("threads per core"), std::string::npos) << out;
+  EXPECT_NE(out.find("threads per CPU"), std::string::npos) << out;
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(60));
   expect_refused("--threads -3 info " + tiny_scene().string(), {"--threads"});
 }

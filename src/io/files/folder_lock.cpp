@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -26,9 +27,21 @@ std::string read_owner(int fd) {
 
 FolderLock::FolderLock(const fs::path& folder, const std::string& command) {
   const fs::path path = folder / kLockFile;
-  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  // Never through a link: a lock file linked to someone else's file would
+  // have that file truncated and rewritten below.
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK, 0644);
+  if (fd_ < 0 && errno == ELOOP)
+    throw core::Error(path, std::string("is a symbolic link; ddhgs never follows links for its "
+                                        "lock file (remove the link)"));
+  if (fd_ < 0 && errno == EISDIR) throw core::Error(path, "is not a regular file; remove it");
   if (fd_ < 0)
     throw core::Error(folder, std::string("cannot create its lock file: ") + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd_);
+    fd_ = -1;
+    throw core::Error(path, "is not a regular file; remove it");
+  }
   if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
     const int error = errno;
     const std::string owner = read_owner(fd_);

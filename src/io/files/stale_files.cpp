@@ -3,10 +3,13 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <mutex>
 #include <set>
+#include <vector>
 
+#include "core/log.h"
 #include "io/files/output_folder.h"
 
 namespace ddhgs::io {
@@ -60,20 +63,49 @@ void remove_stale_temporaries_once(const fs::path& folder) {
   remove_stale_temporaries(folder);
 }
 
+namespace {
+
+// True when the folder holds nothing but an output marker (a temporary
+// output whose build had not written anything yet).
+bool empty_but_marker(const fs::path& folder) {
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(folder, ec))
+    if (entry.path().filename() != kOutputMarker) return false;
+  return !ec;
+}
+
+}  // namespace
+
 void remove_stale_temporaries(const fs::path& folder) {
   std::error_code ec;
+  // A folder that is itself a ddhgs output is ddhgs's to tidy; anywhere else
+  // (beside an output, in the user's folders) a name alone proves nothing.
+  const bool ours = output_kind(folder).has_value();
+  std::vector<std::string> left;
   for (const auto& entry : fs::directory_iterator(folder, ec)) {
     const auto name = parse_temporary_name(entry.path().filename().string());
     if (!name || name->owner == long(::getpid()) || running(name->owner)) continue;
     std::error_code ignored;
     if (entry.is_symlink(ignored)) continue;
     if (!name->is_file && entry.is_directory(ignored)) {
-      if (fs::is_empty(entry.path(), ignored) || output_kind(entry.path()))
+      if (fs::is_empty(entry.path(), ignored) || empty_but_marker(entry.path()))
         fs::remove_all(entry.path(), ignored);
+      else
+        left.push_back(entry.path().filename().string());
     } else if (name->is_file && entry.is_regular_file(ignored)) {
-      fs::remove(entry.path(), ignored);
+      if (ours)
+        fs::remove(entry.path(), ignored);
+      else
+        left.push_back(entry.path().filename().string());
     }
   }
+  if (left.empty()) return;
+  std::sort(left.begin(), left.end());
+  std::string names;
+  for (size_t i = 0; i < left.size() && i < 5; ++i) names += (i ? ", " : "") + left[i];
+  if (left.size() > 5) names += " and " + std::to_string(left.size() - 5) + " more";
+  core::log_warn(folder.string() + ": left alone, named like temporaries of a ddhgs process " +
+                 "that is gone: " + names + " (delete them if they are not yours)");
 }
 
 }  // namespace ddhgs::io

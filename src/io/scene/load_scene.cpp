@@ -366,6 +366,16 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
                                   first.bands, origin, kept.front().data_path),
                found.rgb, origin);
 
+  // A downscale that leaves nothing of a view is a mistyped flag, said as
+  // such before anything is read.
+  for (const auto& c : kept) {
+    const int w = int(c.camera.intrinsics.width), h = int(c.camera.intrinsics.height);
+    if (std::min(w, h) / options.downscale < 1)
+      throw core::Error("--downscale " + std::to_string(options.downscale) + ": view " + c.name +
+                        " is " + std::to_string(w) + " x " + std::to_string(h) +
+                        " px, which leaves no pixel; at most " +
+                        std::to_string(std::max(1, std::min(w, h))));
+  }
   for (const auto& c : kept) {
     View v;
     v.name = c.name;
