@@ -56,10 +56,10 @@ echo "load before: $(cut -d' ' -f1-3 /proc/loadavg); $(nproc) cores; $ddhgs"
 if [[ $parts == *1* ]]; then
   alone=() busy=()
   for round in 1 2; do
-    a=$(timed "$ddhgs" -q train "$basil" --out "$work/b1" --force --downscale 4 --iterations 300 \
+    a=$(timed "$ddhgs" -q train "$basil" --rgb --out "$work/b1" --force --downscale 4 --iterations 300 \
       --checkpoint-every 0)
     start_busy
-    b=$(timed "$ddhgs" -q train "$basil" --out "$work/b1" --force --downscale 4 --iterations 300 \
+    b=$(timed "$ddhgs" -q train "$basil" --rgb --out "$work/b1" --force --downscale 4 --iterations 300 \
       --checkpoint-every 0)
     stop_busy
     alone+=("$a") busy+=("$b")
@@ -105,7 +105,7 @@ fi
 
 if [[ $parts == *4* ]]; then
   iterations=${BASIL_ITERATIONS_4:-2000}
-  timed "$ddhgs" -q train "$basil" --out "$work/b4" --force --downscale 4 \
+  timed "$ddhgs" -q train "$basil" --rgb --out "$work/b4" --force --downscale 4 \
     --iterations "$iterations" --checkpoint-every 0 --set loss.diffusion=0.3 \
     diffusion.finetune_steps=400 >/dev/null
   python3 - "$work/b4/metrics.jsonl" "$iterations" <<'EOF'
@@ -113,6 +113,7 @@ import json, sys
 records = [json.loads(line) for line in open(sys.argv[1])]
 iterations = int(sys.argv[2])
 seconds = {r["iter"]: r["seconds"] for r in records if "seconds" in r}
+gaussians = {r["iter"]: r.get("num_gaussians") for r in records}
 warmup = 500  # diffusion.warmup: the joint phase starts after it
 def blocks(first, last):
     times = []
@@ -127,6 +128,9 @@ for name, first, last in (("joint phase", warmup, iterations),
         print(f"bar 4: {name}: no 100-iteration blocks logged"); continue
     print(f"bar 4: {name}: {len(t)} blocks of 100, {min(t):.1f}-{max(t):.1f} s, "
           f"slowest / fastest = {max(t) / min(t):.2f} (bar 1.3)")
+    print("  blocks (end iteration: s, Gaussians): " + ", ".join(
+        f"{first + 100 * (i + 1)}: {v:.1f} s, {gaussians.get(first + 100 * (i + 1))}"
+        for i, v in enumerate(t)))
 EOF
 fi
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -15,6 +15,7 @@
 #include "io/files/atomic_file.h"
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
+#include "io/files/output_marker.h"
 #include "train/config.h"
 #include "train/run_config.h"
 #include "train/trainer.h"
@@ -247,10 +248,13 @@ json run_ablation(const AblationOptions& options) {
   require_test_views(configs.front());
   // Rows are trained into an earlier ablation folder (reused or continued),
   // never into a folder ddhgs did not make.
-  const io::OutputRequest request{options.out, io::OutputKind::Ablation, true, {options.data}, ""};
+  io::OutputRequest request{options.out, io::OutputKind::Ablation, true, {options.data}, ""};
+  request.merge = true;  // rows are added to it, nothing is deleted
   if (io::check_output_folder(request) != io::OutputState::Ours) {
     fs::create_directories(options.out);
-    io::mark_output_folder(options.out, io::OutputKind::Ablation);
+    // Its rows are runs with markers of their own.
+    io::write_output_marker(
+        options.out, {io::OutputKind::Ablation, false, true, {"ablation.json", "ablation.md"}});
   }
   io::FolderLock lock(options.out, "ablate");
 

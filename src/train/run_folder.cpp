@@ -20,6 +20,13 @@ fs::path RunPaths::checkpoint_at(int64_t iteration) const {
   return root / "checkpoints" / ("ckpt_" + std::to_string(iteration) + ".pt");
 }
 
+std::vector<std::string> run_entry_names() {
+  // export/: `ddhgs export`'s default output. Nested outputs (eval/,
+  // report/, renders/) carry markers of their own and are checked as such.
+  return {"config.json",        "gaussians.ply",   "checkpoint.pt", "checkpoints", "metrics.jsonl",
+          "train_summary.json", "background.json", "denoiser.pt",   "export"};
+}
+
 RunWriter::RunWriter(const RunPaths& run, io::OutputRequest request)
     : run_(run), replacement_(std::move(request)) {}
 
@@ -33,8 +40,9 @@ std::unique_ptr<RunWriter> RunWriter::create(const RunPaths& run, const nlohmann
     core::log_info(run.root.string() +
                    " holds a run that stopped before its first checkpoint; "
                    "replacing it");
-  std::unique_ptr<RunWriter> writer(
-      new RunWriter(run, {run.root, io::OutputKind::Run, replace || unstarted, inputs}));
+  io::OutputRequest request{run.root, io::OutputKind::Run, replace || unstarted, inputs};
+  request.entries = run_entry_names();
+  std::unique_ptr<RunWriter> writer(new RunWriter(run, std::move(request)));
   writer->replacement_.begin();
   try {
     writer->lock_ = io::FolderLock(run.root, "train");

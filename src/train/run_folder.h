@@ -30,6 +30,10 @@ struct RunPaths {
   std::filesystem::path learned_background() const { return root / "background.json"; }
 };
 
+// The top-level names a run folder's files have (recorded in its marker as
+// ddhgs's; `--force` refuses a run holding anything else).
+std::vector<std::string> run_entry_names();
+
 // A run folder while `train` writes it: locked against a second writer for
 // the writer's life (io/files/folder_lock.h) and marked as a ddhgs run.
 class RunWriter {

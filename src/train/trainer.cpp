@@ -194,7 +194,14 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   t->state_.gaussians = initialise_gaussians(*t->scene_, options);
   t->state_.stats.reset(t->state_.gaussians.size());
   t->create_optimizer();
-  t->writer_ = RunWriter::create(run, config, replace, inputs);
+  // Every file the run will read, resolved before anything is moved: a cube
+  // inside the folder being replaced would go with it.
+  std::vector<fs::path> read = inputs;
+  for (const io::View& v : t->scene_->views) {
+    read.push_back(v.data_path);
+    if (!v.clean_path.empty()) read.push_back(v.clean_path);
+  }
+  t->writer_ = RunWriter::create(run, config, replace, read);
   core::log_info("training " + std::to_string(t->state_.gaussians.size()) + " Gaussians x " +
                  std::to_string(t->scene_->bands()) + " bands on " +
                  std::to_string(t->scene_->train.size()) + " views (" +

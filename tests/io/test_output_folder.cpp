@@ -198,11 +198,18 @@ TEST(OutputFolder, WriteIntoAddsFilesAndKeepsTheOthers) {
   EXPECT_EQ(listing(dir / "photos"), (std::vector<std::string>{"holiday.png"}));
 }
 
+// A run written in place, declaring the one file it writes.
+OutputRequest run_request(const fs::path& out) {
+  OutputRequest request{out, OutputKind::Run, true, {}};
+  request.entries = {"gaussians.ply"};
+  return request;
+}
+
 TEST(OutputFolder, ReplacementKeepsTheEarlierOutputAsideUntilCommitted) {
   const fs::path dir = test::temp_dir("output_replacement");
   const fs::path out = dir / "run";
   write_folder_atomically({out, OutputKind::Run, false, {}}, writes("gaussians.ply", "good"));
-  FolderReplacement first({out, OutputKind::Run, true, {}});
+  FolderReplacement first(run_request(out));
   first.begin();
   EXPECT_EQ(first.aside(), dir / "run.previous");
   EXPECT_EQ(read_file(dir / "run.previous" / "gaussians.ply"), "good");
@@ -210,23 +217,83 @@ TEST(OutputFolder, ReplacementKeepsTheEarlierOutputAsideUntilCommitted) {
   EXPECT_EQ(read_file(out / "gaussians.ply"), "good");
   EXPECT_EQ(listing(dir), (std::vector<std::string>{"run"}));
 
-  FolderReplacement second({out, OutputKind::Run, true, {}});
+  FolderReplacement second(run_request(out));
   second.begin();
   write_file_atomically(out / "gaussians.ply", "better");
   // Interrupted here. Another replacement refuses while run.previous waits.
-  FolderReplacement third({out, OutputKind::Run, true, {}});
+  FolderReplacement third(run_request(out));
   EXPECT_TRUE(contains(error_of([&] { third.begin(); }), "did not finish"));
   EXPECT_EQ(read_file(dir / "run.previous" / "gaussians.ply"), "good");
   // Continued later: the pending replacement is found again and completed.
-  FolderReplacement continued({out, OutputKind::Run, true, {}});
+  FolderReplacement continued(run_request(out));
   continued.resume();
   EXPECT_TRUE(continued.replacing());
   continued.commit();
   EXPECT_EQ(listing(dir), (std::vector<std::string>{"run"}));
   EXPECT_EQ(read_file(out / "gaussians.ply"), "better");
-  FolderReplacement again({out, OutputKind::Run, true, {}});
+  FolderReplacement again(run_request(out));
   again.resume();
   EXPECT_FALSE(again.replacing());
+}
+
+// --force replaces only what ddhgs wrote: anything else in the folder, or in
+// an output nested in it, is named and the folder left as it was.
+TEST(OutputFolder, ReplacingRefusesWhileTheOutputHoldsAUsersFiles) {
+  const fs::path dir = test::temp_dir("output_foreign");
+  const fs::path out = dir / "run";
+  {
+    FolderReplacement run(run_request(out));
+    run.begin();
+    write_file_atomically(out / "gaussians.ply", "model");
+    run.commit();
+  }
+  write_folder_atomically({out / "report", OutputKind::Report, false, {}},
+                          writes("index.html", "page"));
+  // Nothing but ddhgs's: replaced.
+  EXPECT_EQ(check_output_folder(run_request(out)), OutputState::Ours);
+  write_file_atomically(out / "notes.txt", "my notes");
+  write_file_atomically(out / "report" / "annotations.md", "mine too");
+  const std::string e = error_of([&] { FolderReplacement(run_request(out)).begin(); });
+  EXPECT_TRUE(contains(e, "holds files ddhgs did not write (notes.txt, report/annotations.md)"))
+      << e;
+  EXPECT_TRUE(contains(e, "nothing was touched")) << e;
+  EXPECT_EQ(read_file(out / "notes.txt"), "my notes");
+  EXPECT_EQ(listing(dir), (std::vector<std::string>{"run"}));
+  // The report alone is refused too; adding files to it is not.
+  const std::string r = error_of([&] {
+    write_folder_atomically({out / "report", OutputKind::Report, true, {}}, writes("a", "b"));
+  });
+  EXPECT_TRUE(contains(r, "annotations.md")) << r;
+  write_into_folder_atomically({out / "report", OutputKind::Report, true, {}},
+                               writes("extra.html", "more"));
+  EXPECT_EQ(read_file(out / "report" / "annotations.md"), "mine too");
+  // and what was added is ddhgs's from then on.
+  fs::remove(out / "report" / "annotations.md");
+  fs::remove(out / "notes.txt");
+  EXPECT_EQ(check_output_folder(run_request(out)), OutputState::Ours);
+}
+
+// A marker copied or linked into a user's folder does not make it ddhgs's.
+TEST(OutputFolder, ACopiedOrLinkedMarkerIsNoLicence) {
+  const fs::path dir = test::temp_dir("output_fake_marker");
+  write_folder_atomically({dir / "report", OutputKind::Report, false, {}},
+                          writes("index.html", "page"));
+  const fs::path mine = dir / "mine";
+  fs::create_directories(mine);
+  write_file_atomically(mine / "thesis.tex", "years of work");
+  fs::copy_file(dir / "report" / kOutputMarker, mine / kOutputMarker);
+  const auto replace_mine = [&] {
+    write_folder_atomically({mine, OutputKind::Report, true, {}}, writes("index.html", "x"));
+  };
+  EXPECT_TRUE(contains(error_of(replace_mine), "thesis.tex"));
+  fs::remove(mine / kOutputMarker);
+  fs::create_symlink(dir / "report" / kOutputMarker, mine / kOutputMarker);
+  EXPECT_TRUE(contains(error_of(replace_mine), "did not write")) << error_of(replace_mine);
+  // A marker of an older ddhgs (no list of files): it cannot tell, so it refuses.
+  fs::remove(mine / kOutputMarker);
+  write_file_atomically(mine / kOutputMarker, "ddhgs report\n");
+  EXPECT_TRUE(contains(error_of(replace_mine), "older ddhgs")) << error_of(replace_mine);
+  EXPECT_EQ(read_file(mine / "thesis.tex"), "years of work");
 }
 
 TEST(OutputFolder, StaleTemporariesAreRemovedOnlyWhereTheyAreProvablyOurs) {

@@ -86,9 +86,11 @@ TEST(OutputSafety, ASecondWriterOfARunFolderIsRefused) {
   const fs::path run = dir / "run";
   std::string out;
   // The first train holds the run folder; the second, started while it
-  // runs, must neither replace it nor mix its config into it.
+  // runs, must neither replace it nor mix its config into it. The first runs
+  // long enough (seconds) to be still running when the second has loaded
+  // its scene.
   const std::string first = test::ddhgs_binary() + " -q train " + tiny_scene().string() +
-                            " --out " + run.string() + " --preset demo --iterations 150 --seed 1";
+                            " --out " + run.string() + " --preset demo --iterations 1500 --seed 1";
   const std::string second = test::ddhgs_binary() + " train " + tiny_scene().string() + " --out " +
                              run.string() + " --force --preset demo --iterations 20 --seed 2";
   const int rc = test::run_command(

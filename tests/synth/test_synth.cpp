@@ -289,7 +289,10 @@ TEST(SynthDataset, ReplacesOnlyItsOwnSceneAndOnlyWithForce) {
   }
   write_synthetic_scene(tiny(2), dir / "scene", true);
   EXPECT_TRUE(fs::exists(dir / "scene" / "transforms.json"));
-  EXPECT_EQ(slurp(dir / "scene" / ".ddhgs-output"), "ddhgs scene\n");
+  // The marker names the kind and lists what the scene holds as ddhgs's.
+  EXPECT_EQ(slurp(dir / "scene" / ".ddhgs-output"),
+            "ddhgs scene\nmanifest\nwrote clean\nwrote hyperspectral\nwrote images\n"
+            "wrote points.ply\nwrote synth.json\nwrote transforms.json\n");
   // An empty folder is fine without --force.
   fs::create_directories(dir / "empty");
   EXPECT_NO_THROW(write_synthetic_scene(tiny(1), dir / "empty", false));

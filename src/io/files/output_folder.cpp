@@ -7,15 +7,13 @@
 
 #include "core/error.h"
 #include "io/files/atomic_file.h"
+#include "io/files/output_marker.h"
 #include "io/files/stale_files.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr OutputKind kKinds[] = {OutputKind::Scene,   OutputKind::Run,  OutputKind::Report,
-                                 OutputKind::Renders, OutputKind::Eval, OutputKind::Ablation};
 
 // Absolute, without "." / ".." and without a trailing separator, so that
 // filename() and parent_path() name the folder itself.
@@ -59,39 +57,25 @@ std::optional<fs::path> home_folder(const PathContext& context) {
   return std::nullopt;
 }
 
-// The marker's lines: "ddhgs KIND", then "replacing" while an earlier
-// output waits beside the folder (FolderReplacement).
-constexpr const char* kPendingLine = "replacing";
-
-std::vector<std::string> marker_lines(const fs::path& folder) {
-  std::error_code ec;
-  const fs::path marker = folder / kOutputMarker;
-  std::vector<std::string> lines;
-  if (!fs::is_regular_file(marker, ec) || fs::file_size(marker, ec) > 4096) return lines;
-  std::string text;
-  try {
-    text = read_file(marker);
-  } catch (const core::Error&) {
-    return lines;
-  }
-  size_t start = 0;
-  while (start < text.size()) {
-    size_t end = text.find('\n', start);
-    if (end == std::string::npos) end = text.size();
-    lines.push_back(text.substr(start, end - start));
-    start = end + 1;
-  }
-  return lines;
-}
-
-void write_marker(const fs::path& folder, OutputKind kind, bool pending) {
-  write_file_atomically(folder / kOutputMarker,
-                        "ddhgs " + to_string(kind) + "\n" +
-                            (pending ? kPendingLine + std::string("\n") : std::string()));
-}
-
 std::string refusal(const fs::path& folder, const std::string& why) {
   return folder.string() + ": " + why + "; nothing was touched";
+}
+
+// Replacing an output deletes it: refused while it holds anything ddhgs did
+// not write (a user's notes, a dataset, a preset), or when it cannot tell.
+void refuse_foreign_entries(const fs::path& folder, const OutputMarker& marker) {
+  if (!marker.listed)
+    throw core::Error(refusal(folder,
+                              "was written by an older ddhgs that kept no list of its files, so "
+                              "they cannot be told from yours; delete it yourself or give another "
+                              "folder"));
+  const std::vector<std::string> foreign = foreign_entries(folder, marker);
+  if (foreign.empty()) return;
+  std::string names;
+  for (size_t i = 0; i < foreign.size() && i < 5; ++i) names += (i ? ", " : "") + foreign[i];
+  if (foreign.size() > 5) names += " and " + std::to_string(foreign.size() - 5) + " more";
+  throw core::Error(refusal(folder, "holds files ddhgs did not write (" + names +
+                                        "); move them out first, or give another folder"));
 }
 
 }  // namespace
@@ -141,15 +125,13 @@ std::string protected_reason(const fs::path& folder, const std::vector<fs::path>
 }
 
 std::optional<OutputKind> output_kind(const fs::path& folder) {
-  const std::vector<std::string> lines = marker_lines(folder);
-  if (lines.empty()) return std::nullopt;
-  for (OutputKind kind : kKinds)
-    if (lines.front() == "ddhgs " + to_string(kind)) return kind;
-  return std::nullopt;
+  const auto marker = read_output_marker(folder);
+  if (!marker) return std::nullopt;
+  return marker->kind;
 }
 
 void mark_output_folder(const fs::path& folder, OutputKind kind) {
-  write_marker(folder, kind, false);
+  write_output_marker(folder, {kind, false, true, folder_entries(folder)});
 }
 
 OutputState check_output_folder(const OutputRequest& request, const PathContext& context) {
@@ -179,6 +161,7 @@ OutputState check_output_folder(const OutputRequest& request, const PathContext&
                                   (request.replace_flag.empty()
                                        ? std::string()
                                        : "; pass " + request.replace_flag + " to replace it"));
+  if (!request.merge) refuse_foreign_entries(folder, *read_output_marker(folder));
   return OutputState::Ours;
 }
 
@@ -200,6 +183,7 @@ fs::path build_apart(const fs::path& folder, OutputKind kind,
     fs::create_directory(tmp);
     mark_output_folder(tmp, kind);
     build(tmp);
+    mark_output_folder(tmp, kind);  // everything in it is ddhgs's
   } catch (...) {
     std::error_code ignored;  // the original error matters, not this one
     fs::remove_all(tmp, ignored);
@@ -245,9 +229,13 @@ fs::path write_into_folder_atomically(const OutputRequest& request,
                                       const std::function<void(const fs::path& tmp)>& build) {
   OutputRequest merge = request;
   merge.replace = true;  // adds to an earlier output of its kind, never to anything else
+  merge.merge = true;
   const OutputState state = check_output_folder(merge);
   const fs::path folder = absolute_folder(request.folder);
-  if (state != OutputState::Ours) return write_folder_atomically(merge, build);
+  if (state != OutputState::Ours) {
+    merge.merge = false;
+    return write_folder_atomically(merge, build);
+  }
   const fs::path tmp = build_apart(folder, request.kind, build);
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(tmp)) {
@@ -260,6 +248,9 @@ fs::path write_into_folder_atomically(const OutputRequest& request,
       throw core::Error(target, "is in the way of a new file of the same name; nothing was added");
     }
   }
+  OutputMarker marker = *read_output_marker(folder);
+  for (const std::string& name : folder_entries(tmp)) marker.entries.push_back(name);
+  write_output_marker(folder, marker);
   for (const auto& entry : fs::directory_iterator(tmp)) {
     if (entry.path().filename() == kOutputMarker) continue;
     fs::rename(entry.path(), folder / entry.path().filename(), ec);
@@ -298,7 +289,7 @@ void FolderReplacement::begin(const PathContext& context) {
   bool created = false;
   try {
     created = fs::create_directories(folder_);
-    write_marker(folder_, request_.kind, replacing_);
+    write_output_marker(folder_, {request_.kind, replacing_, true, request_.entries});
   } catch (const std::exception& e) {
     const std::string why = e.what();
     // Made here, but its marker did not fit (a full disk): still empty, so
@@ -311,16 +302,19 @@ void FolderReplacement::begin(const PathContext& context) {
 
 void FolderReplacement::resume() {
   folder_ = absolute_folder(request_.folder);
-  const std::vector<std::string> lines = marker_lines(folder_);
-  replacing_ = output_kind(folder_) == request_.kind && lines.size() > 1 &&
-               lines[1] == kPendingLine && output_kind(aside()) == request_.kind;
+  const auto marker = read_output_marker(folder_);
+  replacing_ = marker && marker->kind == request_.kind && marker->pending &&
+               output_kind(aside()) == request_.kind;
 }
 
 void FolderReplacement::commit() {
   if (!replacing_) return;
   std::error_code ec;
   if (output_kind(aside()) == request_.kind) fs::remove_all(aside(), ec);
-  write_marker(folder_, request_.kind, false);
+  if (auto marker = read_output_marker(folder_)) {
+    marker->pending = false;
+    write_output_marker(folder_, *marker);
+  }
   replacing_ = false;
 }
 

@@ -1,8 +1,11 @@
 // Output folders: what ddhgs may create, replace or delete, and how.
 //
 // Every folder ddhgs writes (a scene, a run, a report, renders, evaluation
-// results, an ablation) carries a marker file naming its kind. An existing
-// folder is only ever replaced when it carries the marker of the same kind,
+// results, an ablation) carries a marker file naming its kind and listing
+// what ddhgs wrote there (io/files/output_marker.h). An existing folder is
+// only ever replaced when it carries the marker of the same kind and holds
+// nothing else (a user's notes, a dataset, a preset: the command refuses,
+// naming them),
 // and never when it is, or contains, a filesystem root, a mount point, the
 // current directory, the user's home or one of the command's inputs: a
 // mistyped --out must not delete anything ddhgs did not write. A replaced
@@ -35,6 +38,13 @@ struct OutputRequest {
   // The flag to name when refusing to replace ("--force"); empty when the
   // command has no such flag.
   std::string replace_flag = "--force";
+  // Adding files to an earlier output (write_into_folder_atomically), not
+  // replacing it: what else it holds stays, so it is no reason to refuse.
+  bool merge = false;
+  // For an output written in place (FolderReplacement): the top-level names
+  // it writes, recorded in its marker as ddhgs's. Outputs built apart list
+  // what their build wrote.
+  std::vector<std::string> entries = {};
 };
 
 enum class OutputState {
@@ -68,7 +78,8 @@ std::optional<OutputKind> output_kind(const std::filesystem::path& folder);
 // core::Error with one line naming the folder and why it was not touched.
 OutputState check_output_folder(const OutputRequest& request, const PathContext& context = {});
 
-// Writes the marker of kind into folder (which must exist).
+// Writes the marker of kind into folder (which must exist), listing what the
+// folder holds now as ddhgs's.
 void mark_output_folder(const std::filesystem::path& folder, OutputKind kind);
 
 // Builds an output folder under a temporary sibling name (build(tmp) fills
