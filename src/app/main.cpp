@@ -61,7 +61,14 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version print and succeed; anything else is one error
+    // line and exit 1, like every other error (not CLI11's two lines and
+    // its own exit codes 104-109).
+    if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
+    std::string text = e.what();
+    std::replace(text.begin(), text.end(), '\n', ' ');
+    std::cerr << "error: " << text << " (see --help)\n";
+    return 1;
   }
   core::set_log_level(quiet     ? core::LogLevel::Quiet
                       : verbose ? core::LogLevel::Verbose

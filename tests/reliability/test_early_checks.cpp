@@ -184,6 +184,19 @@ TEST(EarlyChecks, ADownscaleLargerThanTheViewsIsNamed) {
   EXPECT_FALSE(fs::exists(dir / "run"));
 }
 
+// A value the command line cannot parse is one error line and exit 1, like
+// every other error (it was CLI11's two lines and its own exit codes 104-109).
+TEST(EarlyChecks, CommandLineParseErrorsAreOneLineAndExit1) {
+  const std::string train = "train " + tiny_scene().string() + " --out " +
+                            (test::temp_dir("early_parse") / "run").string();
+  expect_refused(train + " --iterations abc", {"--iterations", "abc"});
+  expect_refused(train + " --no-such-flag", {"--no-such-flag"});
+  expect_refused("info", {"dir"});
+  std::string out;
+  EXPECT_EQ(ddhgs("info --help", &out), 0) << out;
+  EXPECT_EQ(ddhgs("--version", &out), 0) << out;
+}
+
 TEST(EarlyChecks, ThousandsOfThreadsAreCapped) {
   std::string out;
   const auto start = std::chrono::steady_clock::now();
