@@ -23,8 +23,7 @@ std::string read_text(const std::string& path) {
 
 std::optional<double> positive_number(const std::string& text) {
   try {
-    size_t used = 0;
-    const double v = std::stod(text, &used);
+    const double v = std::stod(text);
     if (std::isfinite(v) && v > 0) return v;
   } catch (const std::exception&) {
   }

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace ddhgs::core {
 
@@ -44,5 +45,9 @@ class ProgressBar {
 
 // "1h02m", "3m05s", "12.3s".
 std::string format_duration(double seconds);
+
+// Names for a one-line message: "a, b, c", the first `most` of them and
+// " and N more" after.
+std::string format_names(const std::vector<std::string>& names, size_t most = 5);
 
 }  // namespace ddhgs::core

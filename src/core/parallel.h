@@ -16,7 +16,6 @@
 // bit-identical from run to run, busy machine or not.
 #pragma once
 #include <cstdint>
-#include <utility>
 
 namespace ddhgs::core {
 

@@ -2,10 +2,8 @@
 
 #include <ATen/Parallel.h>
 #include <omp.h>
-#include <torch/torch.h>
 #include <xmmintrin.h>
 
-#include <algorithm>
 #include <cstdlib>
 #include <sstream>
 

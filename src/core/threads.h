@@ -1,6 +1,6 @@
-// Thread set-up: one thread count for every pool in the process (LibTorch's
-// intra-op pool, OpenMP, oneDNN, OpenBLAS), sized by the CPUs the process
-// may use, not by the machine's cores.
+// Thread set-up: how many threads ddhgs's own loops use (sized by the CPUs
+// the process may use, not by the machine's cores), and how LibTorch's
+// OpenMP, oneDNN and OpenBLAS are kept from competing with them.
 #pragma once
 #include <string>
 
@@ -55,7 +55,8 @@ void flush_denormals();
 // process competes for the CPUs), and OpenBLAS to start no pool of its own.
 void set_pool_environment();
 
-// One line for the -v log: "2 threads (all cores: 2 of 2 cores)".
+// One line for the -v log: "2 threads (all cores; 2 of 2 cores in the
+// affinity mask)".
 std::string thread_summary();
 
 }  // namespace ddhgs::core

@@ -21,6 +21,18 @@ void write(const fs::path& path, const std::string& text) {
   std::ofstream(path) << text;
 }
 
+// A fake /proc/self: the process's cgroup lines and the mount table.
+void fake_proc(const fs::path& root, const std::string& cgroup, const std::string& mountinfo) {
+  write(root / "proc/self/cgroup", cgroup);
+  write(root / "proc/self/mountinfo", mountinfo);
+}
+
+// A cgroup v1 folder's quota and period (microseconds).
+void write_cfs(const fs::path& folder, const std::string& quota) {
+  write(folder / "cpu.cfs_quota_us", quota + "\n");
+  write(folder / "cpu.cfs_period_us", "100000\n");
+}
+
 TEST(CpuBudget, ParsesCgroupV2CpuMax) {
   EXPECT_FALSE(core::parse_cpu_max("max 100000\n"));
   EXPECT_DOUBLE_EQ(*core::parse_cpu_max("150000 100000\n"), 1.5);
@@ -45,10 +57,9 @@ TEST(CpuBudget, ParsesCgroupV1CfsQuota) {
 // cgroup up to the mount wins; one outside that path does not count.
 TEST(CpuBudget, FindsTheTightestV2QuotaOnTheProcessPath) {
   const fs::path root = test::temp_dir("cpu_budget_v2");
-  write(root / "proc/self/cgroup", "0::/user.slice/job42/step0\n");
-  write(root / "proc/self/mountinfo",
-        "22 1 0:21 / /proc rw - proc proc rw\n"
-        "30 22 0:26 / /sys/fs/cgroup rw,nosuid shared:4 - cgroup2 cgroup2 rw,nsdelegate\n");
+  fake_proc(root, "0::/user.slice/job42/step0\n",
+            "22 1 0:21 / /proc rw - proc proc rw\n"
+            "30 22 0:26 / /sys/fs/cgroup rw,nosuid shared:4 - cgroup2 cgroup2 rw,nsdelegate\n");
   const fs::path cg = root / "sys/fs/cgroup";
   write(cg / "cpu.max", "max 100000\n");
   write(cg / "user.slice/cpu.max", "800000 100000\n");
@@ -66,9 +77,8 @@ TEST(CpuBudget, FindsTheTightestV2QuotaOnTheProcessPath) {
 // /proc/self/cgroup names in full.
 TEST(CpuBudget, ReadsAContainersOwnCgroupAtTheMountPoint) {
   const fs::path root = test::temp_dir("cpu_budget_container");
-  write(root / "proc/self/cgroup", "0::/docker/abc123\n");
-  write(root / "proc/self/mountinfo",
-        "700 650 0:30 /docker/abc123 /sys/fs/cgroup ro,nosuid - cgroup2 cgroup rw\n");
+  fake_proc(root, "0::/docker/abc123\n",
+            "700 650 0:30 /docker/abc123 /sys/fs/cgroup ro,nosuid - cgroup2 cgroup rw\n");
   write(root / "sys/fs/cgroup/cpu.max", "200000 100000\n");
   EXPECT_DOUBLE_EQ(*core::cgroup_cpu_quota(root.string()), 2.0);
 }
@@ -77,28 +87,23 @@ TEST(CpuBudget, ReadsAContainersOwnCgroupAtTheMountPoint) {
 // here), a mount point with an escaped space.
 TEST(CpuBudget, FindsTheV1CpuHierarchy) {
   const fs::path root = test::temp_dir("cpu_budget_v1");
-  write(root / "proc/self/cgroup",
-        "4:memory:/slurm/uid_1/job_7\n3:cpu,cpuacct:/slurm/uid_1/job_7\n1:name=systemd:/\n");
-  write(root / "proc/self/mountinfo",
-        "31 23 0:28 / /sys/fs/cgroup rw - tmpfs tmpfs rw,mode=755\n"
-        "32 31 0:29 / /sys/fs/cgroup/cpu\\040acct rw,relatime - cgroup cgroup rw,cpu,cpuacct\n"
-        "35 31 0:32 / /sys/fs/cgroup/memory rw,relatime - cgroup cgroup rw,memory\n");
+  fake_proc(root,
+            "4:memory:/slurm/uid_1/job_7\n3:cpu,cpuacct:/slurm/uid_1/job_7\n1:name=systemd:/\n",
+            "31 23 0:28 / /sys/fs/cgroup rw - tmpfs tmpfs rw,mode=755\n"
+            "32 31 0:29 / /sys/fs/cgroup/cpu\\040acct rw,relatime - cgroup cgroup rw,cpu,cpuacct\n"
+            "35 31 0:32 / /sys/fs/cgroup/memory rw,relatime - cgroup cgroup rw,memory\n");
   const fs::path cg = root / "sys/fs/cgroup/cpu acct";
-  write(cg / "cpu.cfs_quota_us", "-1\n");
-  write(cg / "cpu.cfs_period_us", "100000\n");
-  write(cg / "slurm/uid_1/job_7/cpu.cfs_quota_us", "400000\n");
-  write(cg / "slurm/uid_1/job_7/cpu.cfs_period_us", "100000\n");
+  write_cfs(cg, "-1");
+  write_cfs(cg / "slurm/uid_1/job_7", "400000");
   // A quota on the memory hierarchy's folder is not the cpu controller's.
-  write(root / "sys/fs/cgroup/memory/slurm/uid_1/job_7/cpu.cfs_quota_us", "10000\n");
-  write(root / "sys/fs/cgroup/memory/slurm/uid_1/job_7/cpu.cfs_period_us", "100000\n");
+  write_cfs(root / "sys/fs/cgroup/memory/slurm/uid_1/job_7", "10000");
   EXPECT_DOUBLE_EQ(*core::cgroup_cpu_quota(root.string()), 4.0);
 }
 
 TEST(CpuBudget, NoQuotaWhenNothingLimits) {
   const fs::path root = test::temp_dir("cpu_budget_none");
   EXPECT_FALSE(core::cgroup_cpu_quota(root.string()));  // no /proc at all
-  write(root / "proc/self/cgroup", "0::/\n");
-  write(root / "proc/self/mountinfo", "30 22 0:26 / /sys/fs/cgroup rw - cgroup2 cgroup2 rw\n");
+  fake_proc(root, "0::/\n", "30 22 0:26 / /sys/fs/cgroup rw - cgroup2 cgroup2 rw\n");
   write(root / "sys/fs/cgroup/cpu.max", "max 100000\n");
   EXPECT_FALSE(core::cgroup_cpu_quota(root.string()));
 }

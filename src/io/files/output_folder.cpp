@@ -6,6 +6,7 @@
 #include <cstdlib>
 
 #include "core/error.h"
+#include "core/log.h"
 #include "io/files/atomic_file.h"
 #include "io/files/output_marker.h"
 #include "io/files/stale_files.h"
@@ -71,10 +72,8 @@ void refuse_foreign_entries(const fs::path& folder, const OutputMarker& marker) 
                               "folder"));
   const std::vector<std::string> foreign = foreign_entries(folder, marker);
   if (foreign.empty()) return;
-  std::string names;
-  for (size_t i = 0; i < foreign.size() && i < 5; ++i) names += (i ? ", " : "") + foreign[i];
-  if (foreign.size() > 5) names += " and " + std::to_string(foreign.size() - 5) + " more";
-  throw core::Error(refusal(folder, "holds files ddhgs did not write (" + names +
+  throw core::Error(refusal(folder, "holds files ddhgs did not write (" +
+                                        core::format_names(foreign) +
                                         "); move them out first, or give another folder"));
 }
 
@@ -148,7 +147,9 @@ OutputState check_output_folder(const OutputRequest& request, const PathContext&
   if (!reason.empty()) throw core::Error(refusal(folder, reason));
   if (!exists) return OutputState::Absent;
   if (fs::is_empty(folder, ec) && !ec) return OutputState::Empty;
-  const std::optional<OutputKind> found = output_kind(folder);
+  const std::optional<OutputMarker> marker = read_output_marker(folder);
+  const std::optional<OutputKind> found =
+      marker ? std::optional<OutputKind>(marker->kind) : std::nullopt;
   if (!found)
     throw core::Error(refusal(folder, "holds files ddhgs did not write (no " +
                                           std::string(kOutputMarker) +
@@ -161,7 +162,7 @@ OutputState check_output_folder(const OutputRequest& request, const PathContext&
                                   (request.replace_flag.empty()
                                        ? std::string()
                                        : "; pass " + request.replace_flag + " to replace it"));
-  if (!request.merge) refuse_foreign_entries(folder, *read_output_marker(folder));
+  if (!request.merge) refuse_foreign_entries(folder, *marker);
   return OutputState::Ours;
 }
 

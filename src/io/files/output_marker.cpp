@@ -1,6 +1,7 @@
 #include "io/files/output_marker.h"
 
 #include <algorithm>
+#include <cstring>
 
 #include "core/error.h"
 #include "io/files/atomic_file.h"
@@ -68,7 +69,8 @@ std::optional<OutputMarker> read_output_marker(const fs::path& folder) {
   for (size_t i = 1; i < lines.size(); ++i) {
     if (lines[i] == kPendingLine) marker->pending = true;
     if (lines[i] == kManifestLine) marker->listed = true;
-    if (lines[i].rfind(kEntryPrefix, 0) == 0) marker->entries.push_back(lines[i].substr(6));
+    if (lines[i].rfind(kEntryPrefix, 0) == 0)
+      marker->entries.push_back(lines[i].substr(std::strlen(kEntryPrefix)));
   }
   return marker;
 }

@@ -101,11 +101,9 @@ void remove_stale_temporaries(const fs::path& folder) {
   }
   if (left.empty()) return;
   std::sort(left.begin(), left.end());
-  std::string names;
-  for (size_t i = 0; i < left.size() && i < 5; ++i) names += (i ? ", " : "") + left[i];
-  if (left.size() > 5) names += " and " + std::to_string(left.size() - 5) + " more";
   core::log_warn(folder.string() + ": left alone, named like temporaries of a ddhgs process " +
-                 "that is gone: " + names + " (delete them if they are not yours)");
+                 "that is gone: " + core::format_names(left) +
+                 " (delete them if they are not yours)");
 }
 
 }  // namespace ddhgs::io
