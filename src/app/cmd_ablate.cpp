@@ -34,27 +34,27 @@ Action setup(CLI::App& parent) {
                   "switches loss.spectral, wavelength_encoder.enabled, loss.diffusion win)");
   cmd->add_option("--spectral-weight", args->options.spectral_weight,
                   "loss.spectral of the rows with the spectral loss (paper w3)")
-      ->check(CLI::PositiveNumber)
+      ->check(within(1e-12, 1e6))
       ->capture_default_str();
   cmd->add_option("--diffusion-weight", args->options.diffusion_weight,
                   "loss.diffusion of the rows with the denoiser (paper w4)")
-      ->check(CLI::PositiveNumber)
+      ->check(within(1e-12, 1e6))
       ->capture_default_str();
   cmd->add_option("--denoise-steps", args->options.denoise_steps,
                   "DDIM step counts K evaluated for the rows with the denoiser")
       ->delimiter(',')
-      ->check(CLI::PositiveNumber)
+      ->check(within(1, 100000))
       ->capture_default_str();
   cmd->add_option("--start-strength", args->options.start_strength,
                   "Sampler start strength for the denoiser rows (default: the preset's "
                   "diffusion.start_strength); changing it re-evaluates without retraining")
-      ->check(CLI::Range(1e-9, 1.0));
+      ->check(within(1e-9, 1));
   cmd->add_option("--samples", args->options.samples,
                   "Denoised samples averaged per view (default: the preset's "
                   "diffusion.sampler_samples); re-evaluates without retraining")
-      ->check(CLI::PositiveNumber);
+      ->check(within(1, 1000));
   cmd->add_option("--fps-repeats", args->options.fps_repeats, "Timed render passes for FPS")
-      ->check(CLI::NonNegativeNumber)
+      ->check(within(0, 10000))
       ->capture_default_str();
   cmd->add_flag("--force", args->options.force,
                 "Retrain rows whose folder holds a run of another configuration");

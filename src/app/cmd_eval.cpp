@@ -2,12 +2,14 @@
 // split), against the stored views and, for synthetic scenes, clean ground
 // truth; render speed. Runs that trained the diffusion denoiser are also
 // evaluated after denoising, per sampler setting (eval/denoised_eval.h).
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
 #include <optional>
 
 #include "app/registry.h"
 #include "app/trained_run.h"
+#include "core/error.h"
 #include "core/log.h"
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
@@ -45,13 +47,13 @@ Action setup(CLI::App& parent) {
       ->capture_default_str();
   cmd->add_option("--fps-repeats", args->fps_repeats,
                   "Timed passes over the test views for FPS (0: skip timing)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(within(0, 10000))
       ->capture_default_str();
   cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
   cmd->add_option("--denoise-steps", args->denoise_steps,
                   "DDIM step counts K to evaluate the denoiser with (runs with denoiser.pt)")
       ->delimiter(',')
-      ->check(CLI::PositiveNumber)
+      ->check(within(1, 100000))
       ->capture_default_str();
   cmd->add_flag("--ddpm", args->ddpm,
                 "Also evaluate full ancestral DDPM sampling (every step below the start; slow)");
@@ -60,13 +62,31 @@ Action setup(CLI::App& parent) {
                 "rotation and a shift fitted to the image): the model's error apart from the "
                 "poses' (real captures' poses are off by a pixel or so)");
   cmd->add_option("--align-steps", args->align.steps, "Optimiser steps per view for --align-poses")
-      ->check(CLI::PositiveNumber)
+      ->check(within(1, 1000000))
       ->capture_default_str();
   add_sampler_flags(cmd, args->sampler);
   cmd->add_flag("--no-denoise", args->no_denoise, "Evaluate the raw render only");
-  return [args] {
+  auto* denoise_steps_option = cmd->get_option("--denoise-steps");
+  return [args, denoise_steps_option] {
     TrainedRun run = open_trained_run(args->run, args->data);
     io::FolderLock lock(run.root, "eval");
+    // The sampler settings are checked before the (long) raw evaluation.
+    std::vector<eval::DenoiseSetting> settings;
+    if (run.denoiser && !args->no_denoise) {
+      const int64_t schedule = run.denoiser->schedule.steps;
+      std::vector<int64_t> steps;
+      for (int64_t k : args->denoise_steps) {
+        if (k <= schedule) {
+          if (std::find(steps.begin(), steps.end(), k) == steps.end()) steps.push_back(k);
+        } else if (denoise_steps_option->count() > 0) {
+          throw core::Error("--denoise-steps",
+                            "is " + std::to_string(k) + ", but the run's denoiser has a " +
+                                std::to_string(schedule) + "-step schedule (diffusion.steps)");
+        }
+      }
+      if (steps.empty()) steps.push_back(schedule);  // defaults all above a short schedule
+      settings = eval::denoise_settings(steps, args->ddpm, sampler_options(run, args->sampler));
+    }
     std::vector<int> views = eval::split_views(*run.scene, args->split);
     eval::EvalOptions options;
     options.fps_repeats = args->fps_repeats;
@@ -81,9 +101,7 @@ Action setup(CLI::App& parent) {
         eval::evaluate(*run.scene, run.gaussians, run.background, views, args->split, options);
 
     std::optional<eval::DenoisedReport> denoised;
-    if (run.denoiser && !args->no_denoise) {
-      auto settings = eval::denoise_settings(args->denoise_steps, args->ddpm,
-                                             sampler_options(run, args->sampler));
+    if (!settings.empty()) {
       denoised = eval::evaluate_denoised(*run.scene, run.gaussians, run.background, *run.denoiser,
                                          views, args->split, settings);
     }

@@ -145,7 +145,7 @@ Action setup(CLI::App& parent) {
                   "Keep Gaussians whose centre lies in the box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX "
                   "(scene units)");
   cmd->add_option("--min-opacity", args->min_opacity, "Keep Gaussians at least this opaque (0-1)")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(within(0, 1))
       ->capture_default_str();
   return [args, cmd] { return run(*args, *cmd); };
 }

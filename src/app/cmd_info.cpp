@@ -209,7 +209,7 @@ Action setup(CLI::App& parent) {
   cmd->add_option("dir", args->dir, "Dataset folder (transforms.json or COLMAP layout)")
       ->required();
   cmd->add_option("--downscale", args->downscale, "Describe the views at 1/d resolution")
-      ->check(CLI::PositiveNumber);
+      ->check(within(1, 4096));
   cmd->add_flag("--rgb", args->rgb, "Describe the RGB images instead of the cubes");
   cmd->add_flag("--json", args->json, "Print one JSON object instead of text");
   return [args] {

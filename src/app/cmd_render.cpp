@@ -44,7 +44,7 @@ Action setup(CLI::App& parent) {
                     ->capture_default_str();
   cmd->add_option("--orbit", args->orbit,
                   "Render N frames on a smooth orbit fitted to the training cameras instead")
-      ->check(CLI::PositiveNumber)
+      ->check(within(1, 100000))
       ->excludes(split);
   cmd->add_option("--out", args->out,
                   "Output folder (default RUN/renders/<split> or RUN/renders/orbit)");
@@ -63,13 +63,13 @@ Action setup(CLI::App& parent) {
                 "comparison");
   cmd->add_option("--diff-max", args->diff_max,
                   "Absolute error (reflectance) at the top of the heatmap scale")
-      ->check(CLI::PositiveNumber)
+      ->check(within(1e-12, 1e12))
       ->capture_default_str();
   cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
   auto* denoise = cmd->add_option(
       "--denoise", args->denoise,
       "Denoise every render with the run's diffusion denoiser, DDIM with this many steps");
-  denoise->check(CLI::PositiveNumber);
+  denoise->check(within(1, 100000));
   cmd->add_flag("--ddpm", args->ddpm,
                 "Denoise with full ancestral DDPM sampling instead (every step; slow)")
       ->excludes(denoise);

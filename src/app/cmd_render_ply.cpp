@@ -123,7 +123,7 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--preview", args->preview, "Also write a pseudo-RGB PNG preview");
   cmd->add_option("--sh-degree", args->sh_degree,
                   "Evaluate SH up to this degree (default: the file's degree)")
-      ->check(CLI::Range(0, 3));
+      ->check(within(0, 3));
   return [args] { return run(*args); };
 }
 

@@ -45,20 +45,20 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--out", args->out, "Report folder (default RUN/report); replaced if it exists");
   cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
   cmd->add_option("--views", args->views, "Test views shown as pictures")
-      ->check(CLI::PositiveNumber)
+      ->check(within(1, 10000))
       ->capture_default_str();
   cmd->add_option("--viewer-views", args->viewer_views,
                   "Test views in the spectral viewer (each adds every band as images, MBs for "
                   "100+ bands)")
-      ->check(CLI::PositiveNumber)
+      ->check(within(1, 10000))
       ->capture_default_str();
   cmd->add_option("--viewer-px", args->viewer_px,
                   "Longer side of the viewer's band images, pixels (area-averaged down)")
-      ->check(CLI::Range(8, 4096))
+      ->check(within(8, 4096))
       ->capture_default_str();
   cmd->add_option("--diff-max", args->diff_max,
                   "Reflectance error at the top of the heatmap colour map")
-      ->check(CLI::PositiveNumber)
+      ->check(within(1e-12, 1e12))
       ->capture_default_str();
   return [args] {
     TrainedRun run = open_trained_run(args->run, args->data);

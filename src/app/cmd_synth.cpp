@@ -81,6 +81,7 @@ Action setup(CLI::App& parent) {
   return [args, cmd] {
     synth::SynthConfig config = resolve(*args, cmd);
     // Refused before the announcement: a refusal is the only line printed.
+    synth::validate(config);
     io::check_output_folder({args->out, io::OutputKind::Scene, args->force, {}});
     core::log_info("synth: preset " + config.preset + ", " + std::to_string(config.views) +
                    " views of " + std::to_string(config.width) + "x" +

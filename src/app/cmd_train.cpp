@@ -53,13 +53,20 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
     if (colon == std::string::npos)
       throw core::Error("--band-range", "expected MIN:MAX in nm, got '" + a.band_range + "'");
     try {
-      double lo = std::stod(a.band_range.substr(0, colon));
-      double hi = std::stod(a.band_range.substr(colon + 1));
+      size_t lo_end = 0, hi_end = 0;
+      const double lo = std::stod(a.band_range.substr(0, colon), &lo_end);
+      const double hi = std::stod(a.band_range.substr(colon + 1), &hi_end);
+      if (lo_end != colon || hi_end != a.band_range.size() - colon - 1)
+        throw std::invalid_argument("");
       config["data"]["band_min_nm"] = lo;
       config["data"]["band_max_nm"] = hi;
     } catch (const std::exception&) {
       throw core::Error("--band-range", "expected MIN:MAX in nm, got '" + a.band_range + "'");
     }
+    const double lo = config["data"]["band_min_nm"], hi = config["data"]["band_max_nm"];
+    if (!(lo >= 0 && hi <= 1e9 && lo <= hi))
+      throw core::Error("--band-range",
+                        "is " + a.band_range + ", expected MIN:MAX with 0 <= MIN <= MAX (nm)");
   }
   for (const auto& assignment : a.assignments) train::apply_assignment(config, assignment);
 }
@@ -72,12 +79,20 @@ int interrupted_exit_code() {
 }
 
 int run_new(const TrainArgs& a, CLI::App* cmd) {
-  if (a.data.empty()) throw core::Error("train: give a dataset folder (or --resume RUN)");
   if (a.out.empty()) throw core::Error("train: --out RUN is required");
   nlohmann::json config = train::load_preset(a.preset);
   apply_flags(a, cmd, config);
+  // The dataset comes from the argument or from data.path (--set or the
+  // preset), never from both when they disagree.
+  const std::string set_path = config["data"]["path"];
+  if (a.data.empty() && set_path.empty())
+    throw core::Error("train: give a dataset folder (or --resume RUN)");
   std::error_code ec;
-  fs::path data = fs::absolute(a.data, ec);
+  fs::path data = fs::absolute(a.data.empty() ? set_path : a.data, ec);
+  if (!a.data.empty() && !set_path.empty() &&
+      fs::absolute(set_path, ec).lexically_normal() != data.lexically_normal())
+    throw core::Error("train", "key 'data.path' is " + set_path + " (from --set or --preset) but " +
+                                   "the dataset argument is " + a.data + "; give the dataset once");
   if (!fs::exists(data)) throw core::Error(data, "no such dataset folder");
   config["data"]["path"] = data.lexically_normal().string();
   train::validate_config(config, "command line");

@@ -22,6 +22,11 @@ struct Command {
 
 std::vector<Command>& registry();
 
+// A command-line value check: a finite number within [lo, hi]. CLI11's own
+// Range and PositiveNumber let NaN through and have no upper bound, so a
+// typo could run until killed (`--fps-repeats 1000000000`).
+CLI::Validator within(double lo, double hi);
+
 struct Registrar {
   Registrar(std::string name, int order, Setup setup) {
     registry().push_back({std::move(name), order, std::move(setup)});

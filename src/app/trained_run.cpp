@@ -1,5 +1,7 @@
 #include "app/trained_run.h"
 
+#include "app/registry.h"
+
 #include <cmath>
 
 #include "core/error.h"
@@ -72,15 +74,15 @@ void add_sampler_flags(CLI::App* cmd, SamplerFlags& flags) {
       cmd->add_option("--start-strength", flags.start_strength,
                       "Start the reverse process from the render noised to this fraction of the "
                       "schedule (1: pure noise; default diffusion.start_strength of the run)")
-          ->check(CLI::Range(1e-9, 1.0));
+          ->check(within(1e-9, 1));
   flags.eta_option =
       cmd->add_option("--eta", flags.eta, "DDIM eta (0: deterministic; default diffusion.eta)")
-          ->check(CLI::Range(0.0, 1.0));
+          ->check(within(0, 1));
   flags.samples_option =
       cmd->add_option("--samples", flags.samples,
                       "Average this many denoised samples (seeds seed, seed+1, ...): the "
                       "posterior mean, which PSNR rewards (default diffusion.sampler_samples)")
-          ->check(CLI::PositiveNumber);
+          ->check(within(1, 1000));
 }
 
 model::SamplerOptions sampler_options(const TrainedRun& run, const SamplerFlags& flags) {

@@ -1,5 +1,6 @@
 #include "core/camera.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace ddhgs::core {
@@ -27,6 +28,29 @@ bool Intrinsics::operator==(const Intrinsics& o) const {
 Vec3 Camera::forward() const {
   Mat3 r = world_to_camera.rotation();
   return Vec3{r(2, 0), r(2, 1), r(2, 2)};  // third row of R = camera z in world
+}
+
+std::string camera_problem(const Camera& camera) {
+  const Intrinsics& in = camera.intrinsics;
+  for (double v : {in.fx, in.fy, in.cx, in.cy, in.k1, in.k2, in.k3, in.k4, in.p1, in.p2})
+    if (!std::isfinite(v)) return "an intrinsic value is not finite";
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c)
+      if (!std::isfinite(camera.world_to_camera(r, c)))
+        return "the pose holds a value that is not finite";
+  const double size = std::max(in.width, in.height);
+  if (in.fx <= 0 || in.fy <= 0 || std::max(in.fx, in.fy) > 1e6 * size)
+    return "focal length " + std::to_string(std::max(in.fx, in.fy)) +
+           " px is not positive or beyond 1e6 image sizes";
+  if (std::abs(in.cx) > 100 * size || std::abs(in.cy) > 100 * size)
+    return "principal point (" + std::to_string(in.cx) + ", " + std::to_string(in.cy) +
+           ") px lies more than 100 image sizes off the image";
+  const Vec3 c = camera.center();
+  const double distance = std::sqrt(c.x * c.x + c.y * c.y + c.z * c.z);
+  if (!(distance <= kMaxSceneExtent))
+    return "camera centre is " + std::to_string(distance) +
+           " units from the origin (at most 1e7: float32 cannot place it)";
+  return "";
 }
 
 namespace {

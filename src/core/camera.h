@@ -43,6 +43,14 @@ struct Camera {
   Vec3 forward() const;
 };
 
+// Why a camera cannot be rendered in float32, or "" when it can: a value that
+// is not finite, a focal length that is not positive or beyond 1e6 x the
+// image size, a principal point more than 100 image sizes off the image, a
+// camera centre more than kMaxSceneExtent from the origin. (Scenes are in
+// their own units, normalised by the readers; 1e7 is far past any capture.)
+constexpr double kMaxSceneExtent = 1e7;
+std::string camera_problem(const Camera& camera);
+
 // nerfstudio/NeRF camera-to-world (OpenGL axes: x right, y up, z backward) to
 // an OpenCV world-to-camera. A uniform scale in the rotation block is removed.
 Mat4 opengl_c2w_to_opencv_w2c(const Mat4& c2w_gl);

@@ -24,8 +24,14 @@ inline void require(bool ok, const std::string& message) {
 
 // A library's message without its internal tag: nlohmann-json's
 // "[json.exception.parse_error.101] parse error at line 1, column 13: ..."
-// becomes "parse error at line 1, column 13: ...".
+// becomes "parse error at line 1, column 13: ...", and a filesystem error
+// (the standard library's "filesystem error: cannot create directories: ...
+// [path]") the path and the system's reason ("Permission denied").
 inline std::string message_of(const std::exception& e) {
+  if (const auto* fs_error = dynamic_cast<const std::filesystem::filesystem_error*>(&e)) {
+    const std::string reason = fs_error->code().message();
+    return fs_error->path1().empty() ? reason : fs_error->path1().string() + ": " + reason;
+  }
   std::string text = e.what();
   if (text.rfind("[json.exception.", 0) == 0) {
     const size_t end = text.find("] ");

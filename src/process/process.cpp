@@ -78,6 +78,10 @@ ProcessResult process_cubes(const ProcessOptions& options) {
       out, OutputKind::Scene, options.force, {options.cubes_dir, options.poses}};
   check_output_folder(request);
   if (run_sfm) find_colmap(options.colmap);
+  // Given poses are read before the cubes: a missing or broken poses file is
+  // named as such, not as a problem of the cubes found later.
+  ColmapModel given_poses;
+  if (!run_sfm) given_poses = read_poses(options.poses);
   CubeSet cubes = scan_cubes(options.cubes_dir, options.wavelengths);
   core::log_info("process: " + std::to_string(cubes.files.size()) + " cubes of " +
                  std::to_string(cubes.width) + "x" + std::to_string(cubes.height) + " px, " +
@@ -97,7 +101,7 @@ ProcessResult process_cubes(const ProcessOptions& options) {
       run_colmap(options.colmap, tmp / "images", tmp / "colmap", failed_log);
       model = largest_colmap_model(tmp / "colmap" / "sparse");
     } else {
-      model = read_poses(options.poses);
+      model = std::move(given_poses);
     }
     std::vector<int64_t> cube_of = cube_of_images(model, cubes);
     std::vector<bool> posed(cubes.names.size(), false);

@@ -73,12 +73,10 @@ SynthConfig preset_config(const std::string& name) {
   throw core::Error("--preset " + name + ": expected one of " + names);
 }
 
-namespace {
-
 void validate(const SynthConfig& c) {
   core::require(c.width >= 8 && c.height >= 8, "synth: expected --width and --height >= 8");
-  core::require(c.bands >= 1, "synth: expected --bands >= 1");
-  core::require(c.views >= 1, "synth: expected --views >= 1");
+  core::require(c.bands >= 1 && c.bands <= 10000, "synth: expected 1 <= --bands <= 10000");
+  core::require(c.views >= 1 && c.views <= 100000, "synth: expected 1 <= --views <= 100000");
   core::require(c.bands == 1 || c.wl_max_nm > c.wl_min_nm, "synth: expected --wl-max > --wl-min");
   core::require(c.wl_min_nm > 0, "synth: expected --wl-min > 0 nm");
   core::require(c.fov_deg > 0 && c.fov_deg < 170, "synth: expected 0 < --fov-deg < 170");
@@ -86,10 +84,10 @@ void validate(const SynthConfig& c) {
   core::require(c.noise_scale >= 0, "synth: expected --noise-scale >= 0");
   core::require(c.supersample >= 1 && c.supersample <= 8,
                 "synth: expected 1 <= --supersample <= 8");
-  core::require(c.points >= 0, "synth: expected --points >= 0");
+  core::require(c.points >= 0 && c.points <= 10000000, "synth: expected 0 <= --points <= 10000000");
   // A fill of 0 places the cameras infinitely far away: null camera matrices.
   core::require(c.fill > 0 && c.fill <= 1, "synth: expected 0 < --fill <= 1");
-  core::require(c.rings >= 1, "synth: expected --rings >= 1");
+  core::require(c.rings >= 1 && c.rings <= 1000, "synth: expected 1 <= --rings <= 1000");
   core::require(c.min_elevation_deg > -90 && c.max_elevation_deg < 90 &&
                     c.min_elevation_deg <= c.max_elevation_deg,
                 "synth: expected -90 < --elevation-min <= --elevation-max < 90 degrees");
@@ -100,6 +98,8 @@ void validate(const SynthConfig& c) {
                 "synth: --width x --height x --bands is " + std::to_string(view_gib) +
                     " GiB per view as float32 (at most 16384 pixels a side and 4 GiB)");
 }
+
+namespace {
 
 // float [H, W, N] in [0, 1] -> uint16 samples held in int16 (see io::SampleType).
 torch::Tensor to_u16(const torch::Tensor& unit) {

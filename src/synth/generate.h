@@ -50,6 +50,9 @@ struct SynthResult {
 // in place at the end (io::write_folder_atomically), so an interrupted run
 // leaves nothing half-written. An existing scene written by ddhgs is
 // replaced only with force; anything else there is refused.
+// Throws core::Error naming the flag of the first value out of range.
+void validate(const SynthConfig& config);
+
 SynthResult write_synthetic_scene(const SynthConfig& config, const std::filesystem::path& out,
                                   bool force);
 

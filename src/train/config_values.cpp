@@ -21,48 +21,91 @@ struct Range {
   double min, max;  // bounds
   bool above_min;   // min itself excluded
   bool integer = false;
+  bool below_max = false;  // max itself excluded
 };
 
-// Diffusion keys are checked where they are read (train/diffusion_term.cpp).
+// Every number a config holds has a range here (Config.EveryNumberHasARange
+// checks that), with an upper bound where a larger value could only run until
+// killed, overflow or train on infinities. Rates above kMaxRate, weights above
+// kMaxWeight and counts above the bounds below are nonsense for any scene this
+// tool can hold in memory; the bounds are loose on purpose.
+constexpr double kMaxRate = 100;                 // learning rates
+constexpr double kMaxWeight = 1e6;               // loss weights
+constexpr double kMaxCount = 1e9;                // iterations, steps, Gaussians
+constexpr double kMaxMiB = 1 << 30;              // memory budgets, MiB
+constexpr double kMaxSeed = 9007199254740992.0;  // 2^53: every seed a JSON double holds exactly
+
 constexpr Range kRanges[] = {
-    {"iterations", 1, kInf, false, true},
-    {"seed", 0, kInf, false, true},
-    {"data.downscale", 1, kInf, false, true},
-    {"data.bin", 1, kInf, false, true},
-    {"data.cache_mb", 0, kInf, false, true},
+    {"seed", 0, kMaxSeed, false, true},
+    {"iterations", 1, kMaxCount, false, true},
+    {"data.downscale", 1, 4096, false, true},
+    {"data.band_min_nm", 0, 1e9, false},
+    {"data.band_max_nm", 0, 1e9, false},
+    {"data.bin", 1, 100000, false, true},
+    {"data.cache_mb", 0, kMaxMiB, false, true},
     {"model.sh_degree", 0, 3, false, true},
-    {"model.sh_degree_every", 0, kInf, false, true},
-    {"init.random_points", 1, kInf, false, true},
-    {"init.extra_random_per_pixel", 0, kInf, false},
-    {"init.opacity", 0, 1, true},
-    {"init.neighbours", 1, kInf, false, true},
-    {"init.colour_views", 1, kInf, false, true},
-    {"optim.means_lr_init", 0, kInf, false},
-    {"optim.means_lr_final", 0, kInf, false},
-    {"optim.means_lr_max_steps", 1, kInf, false, true},
-    {"optim.sh_dc_lr", 0, kInf, false},
-    {"optim.sh_rest_lr_divisor", 0, kInf, true},
-    {"optim.opacity_lr", 0, kInf, false},
-    {"optim.scaling_lr", 0, kInf, false},
-    {"optim.rotation_lr", 0, kInf, false},
-    {"optim.adam_eps", 0, kInf, true},
-    {"optim.background_lr", 0, kInf, false},
-    {"loss.l1", 0, kInf, false},
-    {"loss.dssim", 0, kInf, false},
-    {"loss.spectral", 0, kInf, false},
-    {"loss.spectral_temperature", 0, kInf, true},
-    {"densify.from_iter", 0, kInf, false, true},
-    {"densify.until_iter", 0, kInf, false, true},
-    {"densify.every", 0, kInf, false, true},
-    {"densify.grad_threshold", 0, kInf, false},
-    {"densify.percent_dense", 0, kInf, false},
-    {"densify.opacity_reset_every", 0, kInf, false, true},
+    {"model.sh_degree_every_fraction", 0, 1, false},
+    {"model.background", -1e6, 1e6, false},
+    {"init.random_points", 1, 1e8, false, true},
+    {"init.extra_random_per_pixel", 0, 1000, false},
+    {"init.opacity", 0, 1, true, false, true},
+    {"init.neighbours", 1, 1000, false, true},
+    {"init.colour_views", 1, 1e6, false, true},
+    {"optim.means_lr_init", 0, kMaxRate, false},
+    {"optim.means_lr_final", 0, kMaxRate, false},
+    {"optim.means_lr_decay_fraction", 0, 1, true},
+    {"optim.sh_dc_lr", 0, kMaxRate, false},
+    {"optim.sh_rest_lr_divisor", 0, 1e9, true},
+    {"optim.opacity_lr", 0, kMaxRate, false},
+    {"optim.scaling_lr", 0, kMaxRate, false},
+    {"optim.rotation_lr", 0, kMaxRate, false},
+    {"optim.adam_eps", 0, 1, true},
+    {"optim.background_lr", 0, kMaxRate, false},
+    {"loss.l1", 0, kMaxWeight, false},
+    {"loss.dssim", 0, kMaxWeight, false},
+    {"loss.spectral", 0, kMaxWeight, false},
+    {"loss.spectral_alpha", 0, kMaxWeight, false},
+    {"loss.spectral_beta", 0, kMaxWeight, false},
+    {"loss.spectral_temperature", 0, 1e6, true},
+    {"loss.diffusion", 0, kMaxWeight, false},
+    {"wavelength_encoder.frequencies", 0, 24, false, true},  // 2^24 x a wavelength stays finite
+    {"wavelength_encoder.hidden", 1, 4096, false, true},
+    {"wavelength_encoder.layers", 1, 64, false, true},
+    {"wavelength_encoder.output_scale", 0, 1e3, false},
+    {"wavelength_encoder.lr", 0, kMaxRate, false},
+    {"camera_refinement.rotation_lr", 0, kMaxRate, false},
+    {"camera_refinement.translation_lr", 0, kMaxRate, false},
+    {"diffusion.warmup", 0, kMaxCount, false, true},
+    {"diffusion.crop", 0, 65536, false, true},
+    {"diffusion.lr", 0, kMaxRate, true},
+    {"diffusion.condition_noise", 0, 1e3, false},
+    {"diffusion.min_snr_gamma", 0, 1e9, false},
+    {"diffusion.finetune_steps", 0, kMaxCount, false, true},
+    {"diffusion.finetune_batch", 1, 4096, false, true},
+    {"diffusion.finetune_crop", 0, 65536, false, true},
+    {"diffusion.finetune_cache_mb", 0, kMaxMiB, false, true},
+    {"diffusion.base_channels", 1, 4096, false, true},
+    {"diffusion.channel_multipliers", 1, 64, false, true},
+    {"diffusion.blocks_per_level", 0, 64, false, true},
+    {"diffusion.steps", 1, 100000, false, true},
+    {"diffusion.beta_start", 0, 1, true, false, true},
+    {"diffusion.beta_end", 0, 1, true, false, true},
+    {"diffusion.sampler_steps", 1, 100000, false, true},
+    {"diffusion.start_strength", 0, 1, true},
+    {"diffusion.eta", 0, 1, false},
+    {"diffusion.sampler_samples", 1, 1000, false, true},
+    {"densify.from_fraction", 0, 1, false},
+    {"densify.until_fraction", 0, 1, false},
+    {"densify.every", 0, kMaxCount, false, true},
+    {"densify.grad_threshold", 0, 1e6, false},
+    {"densify.percent_dense", 0, 1, false},
+    {"densify.opacity_reset_every_fraction", 0, 1, false},
     {"densify.min_opacity", 0, 1, false},
-    {"densify.max_screen_px", 0, kInf, false},
-    {"densify.max_world_fraction", 0, kInf, false},
-    {"densify.max_gaussians", 0, kInf, false, true},
-    {"output.log_every", 0, kInf, false, true},
-    {"output.checkpoint_every", 0, kInf, false, true},
+    {"densify.max_screen_px", 0, 1e9, false},
+    {"densify.max_world_fraction", 0, 1e6, false},
+    {"densify.max_gaussians", 0, 1e9, false, true},
+    {"output.log_every", 0, kMaxCount, false, true},
+    {"output.checkpoint_every", 0, kMaxCount, false, true},
 };
 
 const json* find_key(const json& config, const std::string& dotted) {
@@ -88,14 +131,18 @@ std::string wanted(const Range& r) {
   std::string kind = r.integer ? "an integer" : "a number";
   std::string lower = std::string(r.above_min ? " > " : " >= ") + bound_text(r.min);
   if (std::isinf(r.max)) return kind + lower;
-  return kind + lower + " and <= " + bound_text(r.max);
+  return kind + lower + (r.below_max ? " and < " : " and <= ") + bound_text(r.max);
 }
 
 void check_range(const Range& r, const json& value, const std::string& source) {
+  if (value.is_array()) {  // model.background, diffusion.channel_multipliers: each element
+    for (const json& element : value) check_range(r, element, source);
+    return;
+  }
   if (!value.is_number()) return;  // types are checked apart
   const double v = value.get<double>();
-  const bool ok = std::isfinite(v) && (r.above_min ? v > r.min : v >= r.min) && v <= r.max &&
-                  (!r.integer || v == std::floor(v));
+  const bool ok = std::isfinite(v) && (r.above_min ? v > r.min : v >= r.min) &&
+                  (r.below_max ? v < r.max : v <= r.max) && (!r.integer || v == std::floor(v));
   if (!ok)
     throw core::Error(source, "key '" + std::string(r.key) + "' is " +
                                   (std::isfinite(v) ? value.dump() : std::to_string(v)) +
@@ -107,6 +154,29 @@ void check_range(const Range& r, const json& value, const std::string& source) {
 void check_config_values(const json& config, const std::string& source) {
   for (const Range& r : kRanges)
     if (const json* value = find_key(config, r.key)) check_range(r, *value, source);
+  check_config_relations(config, source);
+}
+
+void check_config_relations(const json& config, const std::string& source) {
+  auto number = [&](const char* key) {
+    const json* v = find_key(config, key);
+    return v && v->is_number() ? v->get<double>() : std::nan("");
+  };
+  if (number("loss.l1") == 0 && number("loss.dssim") == 0)
+    throw core::Error(source,
+                      "keys 'loss.l1' and 'loss.dssim' are both 0: nothing would fit the views "
+                      "(give one of them a weight > 0)");
+  if (number("data.band_min_nm") > number("data.band_max_nm"))
+    throw core::Error(source,
+                      "key 'data.band_min_nm' is above 'data.band_max_nm': no band is kept");
+  if (number("diffusion.beta_start") > number("diffusion.beta_end"))
+    throw core::Error(source, "key 'diffusion.beta_start' is above 'diffusion.beta_end'");
+}
+
+bool has_range(const std::string& key) {
+  for (const Range& r : kRanges)
+    if (key == r.key) return true;
+  return false;
 }
 
 void check_config_value(const std::string& key, const json& value, const std::string& source) {

@@ -1,5 +1,6 @@
 #include "train/run_checks.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -23,13 +24,28 @@ std::string diverged(int64_t iteration, const std::string& what) {
 // (a cube of 3e38 made every Gaussian NaN).
 constexpr double kMaxPlausibleValue = 1e3;
 
-bool is_float(const fs::path& path, const io::Scene& scene) {
-  const io::SampleType type = io::probe_cube(path, io::CubeReadOptions{scene.options.layout}).type;
-  return type == io::SampleType::F16 || type == io::SampleType::F32 || type == io::SampleType::F64;
+// Samples only a full read checks: float cubes (NaN, absurd values) and
+// compressed files (a corrupt strip or scan is found only by decoding it).
+bool needs_full_read(const fs::path& path, const io::Scene& scene) {
+  const io::CubeInfo info = io::probe_cube(path, io::CubeReadOptions{scene.options.layout});
+  const io::SampleType type = info.type;
+  return info.compressed || type == io::SampleType::F16 || type == io::SampleType::F32 ||
+         type == io::SampleType::F64;
 }
 
 void require_plausible(const torch::Tensor& image, const fs::path& path, double scale) {
   const double top = image.abs().max().item<double>();
+  // Dark-subtracted radiance dips a little below 0; a cube more negative than
+  // it is positive (or than -1) is a sign error or garbage.
+  const double lowest = image.min().item<double>(), highest = image.max().item<double>();
+  if (-lowest > std::max(highest, 1.0)) {
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "samples reach %.3g after dividing by the scale %g, more negative than the "
+                  "largest sample (%.3g) is positive; ddhgs expects radiance or reflectance",
+                  lowest, scale, highest);
+    throw core::Error(path, text);
+  }
   if (top > kMaxPlausibleValue) {
     char text[160];
     std::snprintf(text, sizeof text,
@@ -56,15 +72,18 @@ void check_scene_before_training(const io::Scene& scene) {
                                  " more problems; ddhgs info lists them)"
                            : ""));
   // Samples no header describes: the held-out views (otherwise read only
-  // after the last iteration), and every float cube, which may hold NaN or
-  // absurd values (integer samples are bounded by the scale).
+  // after the last iteration), every float cube, which may hold NaN or
+  // absurd values (integer samples are bounded by the scale), and every
+  // compressed view, decoded once here rather than when training first draws
+  // it, possibly hours in. Raw integer cubes need no read: the header checks
+  // above prove them whole.
   std::vector<bool> held_out(scene.views.size(), false);
   for (int v : scene.test) held_out[size_t(v)] = true;
   for (size_t v = 0; v < scene.views.size(); ++v) {
     const io::View& view = scene.views[v];
-    if (held_out[v] || is_float(view.data_path, scene))
+    if (held_out[v] || needs_full_read(view.data_path, scene))
       require_plausible(scene.image(int(v)), view.data_path, scene.scale);
-    if (!view.clean_path.empty() && (held_out[v] || is_float(view.clean_path, scene)))
+    if (!view.clean_path.empty() && (held_out[v] || needs_full_read(view.clean_path, scene)))
       require_plausible(scene.clean_image(int(v)), view.clean_path, scene.scale);
   }
   if (scene.test.empty())

@@ -35,6 +35,16 @@ std::unique_ptr<RunWriter> RunWriter::create(const RunPaths& run, const nlohmann
   // A run being written by another process must not be moved away under it.
   io::FolderLock earlier;
   if (io::output_kind(run.root) == io::OutputKind::Run) earlier = io::FolderLock(run.root, "train");
+  // `train --force` killed before its first checkpoint left RUN.previous
+  // (the earlier run) and an unstarted RUN: the earlier run comes back.
+  if (is_unstarted_run(run) &&
+      io::FolderReplacement({run.root, io::OutputKind::Run, true, {}}).restore_interrupted()) {
+    earlier.release();
+    earlier = io::FolderLock(run.root, "train");
+    core::log_warn(run.root.string() + ": an earlier `train --force` stopped before its first " +
+                   "checkpoint; the run it was replacing is back from " + run.root.string() +
+                   ".previous");
+  }
   const bool unstarted = is_unstarted_run(run);
   if (unstarted)
     core::log_info(run.root.string() +
@@ -50,7 +60,7 @@ std::unique_ptr<RunWriter> RunWriter::create(const RunPaths& run, const nlohmann
     fs::create_directories(run.root / "checkpoints");
     io::write_file_atomically(run.config(), config.dump(2) + "\n");
   } catch (const std::exception& e) {
-    const std::string why = e.what();
+    const std::string why = core::message_of(e);
     writer->replacement_.rollback();
     throw core::Error(run.root, "cannot create the run folder (" + why + ")");
   }
@@ -81,8 +91,22 @@ void RunWriter::finished() {
   replacement_.commit();
 }
 
+void RunWriter::resumed(int64_t iteration, std::string config_text) {
+  saved_iteration_ = resumed_from_ = iteration;
+  config_before_resume_ = std::move(config_text);
+}
+
 void RunWriter::failed() {
   if (fs::exists(run_.checkpoint())) {
+    // What the checkpoint holds, and nothing of the iterations after it.
+    try {
+      if (saved_iteration_ >= 0) MetricsLog::truncate_after(run_.metrics(), saved_iteration_);
+      if (resumed_from_ >= 0 && saved_iteration_ == resumed_from_)
+        io::write_file_atomically(run_.config(), config_before_resume_);
+    } catch (const std::exception& e) {
+      core::log_warn(run_.root.string() + ": could not put the log and config.json back to " +
+                     "the last checkpoint (" + core::message_of(e) + ")");
+    }
     core::log_warn(run_.root.string() + " is kept; continue it with: ddhgs train --resume " +
                    run_.root.string());
     return;
@@ -135,6 +159,23 @@ MetricsLog::MetricsLog(const fs::path& path, int64_t keep_until) : path_(path) {
   io::write_file_atomically(path, kept);
   fd_ = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
   if (fd_ < 0) throw core::Error(path, "cannot open for writing: " + io::system_error_text(errno));
+}
+
+void MetricsLog::truncate_after(const fs::path& path, int64_t iteration) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return;
+  const std::string text = io::read_file(path);
+  size_t keep = 0;
+  for (size_t start = 0; start < text.size();) {
+    size_t end = text.find('\n', start);
+    end = end == std::string::npos ? text.size() : end + 1;
+    auto record = nlohmann::json::parse(text.substr(start, end - start), nullptr, false);
+    if (!record.is_object() || record.value("iter", int64_t(-1)) > iteration) break;
+    keep = start = end;
+  }
+  if (keep == text.size()) return;
+  if (::truncate(path.c_str(), off_t(keep)) != 0)
+    throw core::Error(path, "cannot cut it back: " + io::system_error_text(errno));
 }
 
 MetricsLog::~MetricsLog() {

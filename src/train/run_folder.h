@@ -56,11 +56,21 @@ class RunWriter {
   // Training finished: the run this one replaced, if any, is deleted.
   void finished();
   // Training failed: a run without a checkpoint is removed and the run it
-  // replaced comes back; a run with one is kept for --resume.
+  // replaced comes back; a run with one is kept for --resume, its metrics
+  // cut back to the last checkpoint saved, and a resumed run that saved no
+  // new checkpoint gets its config.json back as it was before --resume.
   void failed();
+
+  // --resume continues from `iteration` and is about to rewrite config.json,
+  // which held `config_text`.
+  void resumed(int64_t iteration, std::string config_text);
+  // A checkpoint of `iteration` is on disk.
+  void saved(int64_t iteration) { saved_iteration_ = iteration; }
 
  private:
   RunWriter(const RunPaths& run, io::OutputRequest request);
+  int64_t saved_iteration_ = -1, resumed_from_ = -1;
+  std::string config_before_resume_;
   RunPaths run_;
   io::FolderReplacement replacement_;
   io::FolderLock lock_;
@@ -92,6 +102,9 @@ class MetricsLog {
   MetricsLog(const MetricsLog&) = delete;
   MetricsLog& operator=(const MetricsLog&) = delete;
   void write(const nlohmann::json& record);
+  // Drops the lines after the last whose "iter" <= iteration, in place (no
+  // room needed: it runs when a full disk ended training).
+  static void truncate_after(const std::filesystem::path& path, int64_t iteration);
 
  private:
   std::filesystem::path path_;

@@ -240,8 +240,10 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
     t->state_.modules = modules;
     load_checkpoint(run.checkpoint(), t->state_, options);
   } else if (iterations > 0) {
+    t->writer_->resumed(t->state_.iteration, io::read_file(run.config()));
     io::write_file_atomically(run.config(), config.dump(2) + "\n");
   }
+  if (t->writer_) t->writer_->saved(t->state_.iteration);  // resumed() may have said so already
   core::log_info("resuming " + run.root.string() + " at iteration " +
                  std::to_string(t->state_.iteration));
   return t;
@@ -362,6 +364,7 @@ json Trainer::finetune_step(int64_t iteration) {
 void Trainer::save(bool numbered) {
   require_finite_parameters(state_, run_.root);
   save_checkpoint(run_.checkpoint(), state_);
+  if (writer_) writer_->saved(state_.iteration);
   if (numbered) {
     io::copy_file_atomically(run_.checkpoint(), run_.checkpoint_at(state_.iteration));
   }

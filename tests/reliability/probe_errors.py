@@ -19,11 +19,16 @@ import sys
 
 RAW_TEXTS = ["json.exception", "bad_alloc", "c10::", "enforce fail", "frame #", "terminate called",
              "index out of range in self", "Expected ", "basic_string", "std::", "what():",
-             "Segmentation", "stoi", "stod"]
+             "Segmentation", "stoi", "stod", "filesystem error", "cannot create directories"]
 
 
-def run(binary, args):
-    proc = subprocess.run([binary] + args, capture_output=True, text=True, timeout=600)
+def run(binary, args, timeout=None):
+    """A case that runs past TIMEOUT seconds (default PROBE_TIMEOUT or 600) fails as "ran on"."""
+    timeout = timeout or float(os.environ.get("PROBE_TIMEOUT", "600"))
+    try:
+        proc = subprocess.run([binary] + args, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return -1, "ran past %g s (no upper limit?)" % timeout
     return proc.returncode, proc.stdout + proc.stderr
 
 
@@ -67,7 +72,7 @@ class Probe:
     def check(self, name, args, named):
         """Runs ddhgs ARGS; the error must name one of `named`."""
         self.cases += 1
-        rc, out = run(self.binary, args)
+        rc, out = run(self.binary, args, timeout=60)
         errors = [line.strip() for line in out.splitlines() if line.startswith("error: ")]
         expected_rc = 1
         if not errors and (args[1:2] == ["info"] or args[:1] == ["info"]):
@@ -296,6 +301,154 @@ def flag_cases(p):
                            os.path.join(p.work, "s")], ["--width"])
 
 
+def round2_cases(p):
+    """Issue 34's list: nonsense accepted silently, library text, wrong names."""
+    for name, extra, named in [
+        ("iterations_overflow", ["--iterations", "99999999999999999999"], ["--iterations"]),
+        ("iterations_huge", ["--iterations", "2000000000"], ["--iterations"]),
+        ("downscale_large", ["--downscale", "1000"], ["--downscale"]),
+        ("band_range_reversed", ["--band-range", "900:400"], ["--band-range"]),
+        ("no_loss", ["--set", "loss.l1=0", "--set", "loss.dssim=0"], ["loss.l1"]),
+        ("until_fraction", ["--set", "densify.until_fraction=-1"], ["densify.until_fraction"]),
+        ("sh_every", ["--set", "model.sh_degree_every_fraction=-1"],
+         ["model.sh_degree_every_fraction"]),
+        ("rotation_lr", ["--set", "camera_refinement.rotation_lr=-1"],
+         ["camera_refinement.rotation_lr"]),
+        ("spectral_alpha", ["--set", "loss.spectral_alpha=-1"], ["loss.spectral_alpha"]),
+        ("opacity_one", ["--set", "init.opacity=1"], ["init.opacity"]),
+        ("frequencies_huge", ["--set", "wavelength_encoder.frequencies=100000"],
+         ["wavelength_encoder.frequencies"]),
+        ("frequencies_negative", ["--set", "wavelength_encoder.frequencies=-1"],
+         ["wavelength_encoder.frequencies"]),
+        ("lr_huge", ["--set", "optim.means_lr=1e38"], ["optim.means_lr"]),
+        ("data_path_twice", ["--set", "data.path=/elsewhere"], ["data.path"]),
+    ]:
+        p.check("train " + name, ["-q", "train", p.scene, "--out", p.fresh("r2_out_" + name),
+                                  "--preset", "demo", "--iterations", "20"] + extra, named)
+    # A one-step noise schedule trains, and eval's default sampler settings fit it.
+    short = p.fresh("r2_short_schedule")
+    p.must(["-q", "train", p.scene, "--out", short, "--preset", "demo", "--iterations", "20",
+            "--set", "diffusion.steps=1", "--set", "loss.diffusion=0.3", "--set",
+            "diffusion.finetune_steps=2", "--set", "diffusion.warmup=10"])
+    p.must(["-q", "eval", short, "--fps-repeats", "0"])
+    p.check("eval denoise steps above the schedule", ["-q", "eval", short, "--denoise-steps", "5"],
+            ["--denoise-steps"])
+    p.check("info downscale", ["-q", "info", p.scene, "--downscale", "1000"], ["--downscale"])
+    p.check("train out read-only", ["-q", "train", p.scene, "--out", "/proc/ddhgs_run", "--preset",
+                                    "demo", "--iterations", "20"], ["/proc/ddhgs_run"])
+    long_out = os.path.join(p.work, "x" * 300, "run")
+    p.check("train out too long", ["-q", "train", p.scene, "--out", long_out, "--preset", "demo",
+                                   "--iterations", "20"], ["x" * 40])
+    s = os.path.join(p.work, "r2_synth")
+    for name, extra, named in [
+        ("views", ["--views", "10000000"], ["--views"]),
+        ("points", ["--points", "2000000000"], ["--points"]),
+        ("points_negative", ["--points", "-5"], ["--points"]),
+    ]:
+        p.check("synth " + name, ["-q", "synth", "--out", s] + extra, named)
+    rc, text = run(p.binary, ["synth", "--width", "0", "--out", s])
+    p.cases += 1
+    if rc != 1 or "views of" in text:
+        p.failures.append("synth width 0: announces the scene before refusing: %s" % text.strip())
+    run_dir = p.copy_run("r2_run")
+    for name, extra, named in [
+        ("fps_repeats", ["--fps-repeats", "1000000000"], ["--fps-repeats"]),
+        ("samples", ["--samples", "1000000"], ["--samples"]),
+        ("start_strength_nan", ["--start-strength", "nan"], ["--start-strength"]),
+        ("denoise_steps_huge", ["--denoise-steps", "1000000"], ["--denoise-steps"]),
+    ]:
+        p.check("eval " + name, ["-q", "eval", run_dir] + extra, named)
+    camera = os.path.join(p.work, "camera_far.json")
+    doc = json.load(open(p.camera))
+    doc["cx"] = 1e30
+    write(camera, json.dumps(doc))
+    ply = os.path.join(p.run_dir, "gaussians.ply")
+    p.check("render-ply cx", ["-q", "render-ply", ply, "--camera", camera, "--out",
+                              os.path.join(p.work, "x.npy")], [camera])
+    # Datasets.
+    base = json.load(open(os.path.join(p.scene, "transforms.json")))
+
+    def edited(name, change):
+        scene = p.copy_scene("r2_" + name)
+        doc = json.loads(json.dumps(base))
+        change(doc, scene)
+        write(os.path.join(scene, "transforms.json"), json.dumps(doc))
+        return scene, os.path.join(scene, "transforms.json")
+
+    for name, change, key in [
+        ("wavelengths_empty", lambda d, s: d.update(wavelengths=[]), "wavelengths"),
+        ("train_filenames_empty", lambda d, s: d.update(train_filenames=[]), "train_filenames"),
+        ("translation_huge", lambda d, s: d["frames"][2]["transform_matrix"][0].__setitem__(3, 1e300),
+         "transform_matrix"),
+    ]:
+        scene, path = edited(name, change)
+        p.check("dataset " + name, ["-q", "train", scene, "--out", scene + "_run", "--preset", "demo",
+                                    "--iterations", "20"], [path])
+    scene = p.copy_scene("r2_negative_cube")
+    for file in os.listdir(os.path.join(scene, "hyperspectral")):
+        path = os.path.join(scene, "hyperspectral", file)
+        write(path, npy_bytes("(24, 32, 4)", "<f4", struct.pack("<f", -50.0) * 3072), "wb")
+    p.check("dataset negative cube", ["-q", "train", scene, "--out", scene + "_run", "--preset",
+                                      "demo", "--iterations", "20"],
+            [os.path.join(scene, "hyperspectral")])
+    scene = p.copy_scene("r2_points_spectra")
+    path = os.path.join(scene, "points.ply")
+    write(path, "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+          "property float z\n" + "".join("property float spec_%d\n" % i for i in range(5)) +
+          "end_header\n0 0 0 1 1 1 1 1\n0.1 0 0 1 1 1 1 1\n")
+    p.check("dataset points spectra", ["-q", "train", scene, "--out", scene + "_run", "--preset",
+                                       "demo", "--iterations", "20"], [path])
+    scene = p.copy_scene("r2_points_huge")
+    path = os.path.join(scene, "points.ply")
+    write(path, "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+          "property float z\nend_header\n3e38 0 0\n0.1 0 0\n")
+    p.check("dataset points huge", ["-q", "train", scene, "--out", scene + "_run", "--preset",
+                                    "demo", "--iterations", "20"], [path])
+    scene, path = edited("nul_byte", lambda d, s: d["frames"][3].update(
+        hyperspectral_file_path="hyperspectral/r_\u0000003.npy"))
+    p.check("dataset nul byte", ["-q", "train", scene, "--out", scene + "_run", "--preset", "demo",
+                                 "--iterations", "20"], [path])
+    # COLMAP duplicates.
+    for name, images in [
+        ("duplicate_name", "".join("%d 1 0 0 0 0 0 4 1 r_%03d.png\n\n" % (i + 1, min(i, 10))
+                                   for i in range(12))),
+        ("duplicate_id", "".join("%d 1 0 0 0 0 0 4 1 r_%03d.png\n\n" % (min(i, 10) + 1, i)
+                                 for i in range(12))),
+    ]:
+        scene = p.fresh("r2_colmap_" + name)
+        os.makedirs(os.path.join(scene, "sparse", "0"))
+        shutil.copytree(os.path.join(p.scene, "hyperspectral"), os.path.join(scene, "hyperspectral"))
+        write(os.path.join(scene, "sparse", "0", "cameras.txt"), "1 PINHOLE 32 24 40 40 16 12\n")
+        write(os.path.join(scene, "sparse", "0", "images.txt"), images)
+        p.check("colmap " + name, ["-q", "train", scene, "--out", scene + "_run", "--preset", "demo",
+                                   "--iterations", "20"],
+                [os.path.join(scene, "sparse", "0", "images.txt")])
+    # A Gaussian PLY with a zero quaternion.
+    run_q = p.copy_run("r2_zero_quaternion")
+    path = os.path.join(run_q, "gaussians.ply")
+    data = open(path, "rb").read()
+    header_end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:header_end].decode()
+    props = [l.split()[-1] for l in header.splitlines() if l.startswith("property")]
+    stride = 4 * len(props)
+    body = bytearray(data[header_end:])
+    for r in ("rot_0", "rot_1", "rot_2", "rot_3"):
+        i = props.index(r)
+        body[i * 4:i * 4 + 4] = struct.pack("<f", 0.0)
+    write(path, data[:header_end] + bytes(body), "wb")
+    p.check("ply zero quaternion", ["-q", "render", run_q], [path])
+    # process --poses.
+    cubes = os.path.join(p.scene, "hyperspectral")
+    for name, content in [("missing", None), ("garbage", "not json at all")]:
+        poses = os.path.join(p.work, "r2_poses_%s.json" % name)
+        if content is not None:
+            write(poses, content)
+        elif os.path.exists(poses):
+            os.remove(poses)
+        p.check("process poses " + name, ["-q", "process", cubes, "--out", os.path.join(p.work, "r2_proc"),
+                                          "--skip-colmap", "--poses", poses], [poses])
+
+
 def main():
     if len(sys.argv) != 3:
         raise SystemExit(__doc__)
@@ -303,7 +456,8 @@ def main():
     os.makedirs(work, exist_ok=True)
     p = Probe(binary, work)
     only = os.environ.get("PROBE_ONLY", "")
-    for group in (cube_cases, transforms_cases, colmap_cases, run_cases, flag_cases):
+    for group in (cube_cases, transforms_cases, colmap_cases, run_cases, flag_cases,
+                  round2_cases):
         if not only or only in group.__name__:
             group(p)
     for failure in p.failures:

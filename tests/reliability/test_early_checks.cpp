@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 
 #include "cli_support.h"
@@ -97,6 +98,24 @@ TEST(EarlyChecks, ABadHeldOutViewOrCleanCubeFailsBeforeTheFirstIteration) {
   EXPECT_FALSE(fs::exists(run));
 }
 
+// A compressed training view is decoded once before the first iteration: a
+// corrupt one fails at the start, naming the file, not when training first
+// draws it (issue 34; with one iteration it was never drawn at all).
+TEST(EarlyChecks, ACorruptCompressedTrainingViewFailsBeforeTheFirstIteration) {
+  const fs::path scene = scene_copy("early_corrupt_png");
+  const fs::path run = scene.parent_path() / "run";
+  const fs::path png = scene / "images" / "r_003.png";  // a training view
+  std::string bytes = io::read_file(png);
+  const size_t idat = bytes.find("IDAT");
+  ASSERT_NE(idat, std::string::npos);
+  for (size_t k = idat + 10; k < std::min(idat + 60, bytes.size() - 20); ++k) bytes[k] ^= 0x5A;
+  io::write_file_atomically(png, bytes);
+  expect_refused("-q train " + scene.string() + " --rgb --out " + run.string() +
+                     " --preset demo --iterations 1",
+                 {"r_003.png", "not a readable"});
+  EXPECT_FALSE(fs::exists(run));
+}
+
 TEST(EarlyChecks, ConfigValuesARunCannotUseAreRefusedBeforeAnyWork) {
   const fs::path dir = test::temp_dir("early_config");
   const std::string train =
@@ -117,7 +136,7 @@ TEST(EarlyChecks, ADivergingRunStopsAtOnceAndKeepsItsLastGoodCheckpoint) {
   // A learning rate that throws the opacities to infinity within a few steps.
   EXPECT_EQ(ddhgs("-q train " + tiny_scene().string() + " --out " + run.string() +
                       " --preset demo --iterations 200 --checkpoint-every 1"
-                      " --set optim.opacity_lr=1e38 --set optim.scaling_lr=1e38",
+                      " --set optim.opacity_lr=100 --set optim.scaling_lr=100",
                   &out),
             1)
       << out;

@@ -63,6 +63,35 @@ TEST(FullDisk, ACheckpointThatDoesNotFitEndsCleanlyAndKeepsThePreviousOne) {
   EXPECT_EQ(ddhgs("-q train --resume " + run.string() + " --iterations 40", &out), 0) << out;
 }
 
+// A resume that fails before its first new checkpoint leaves config.json
+// (which --iterations rewrote) and metrics.jsonl (which logged the lost
+// iterations) as they were: the run is the one its checkpoint holds.
+TEST(FullDisk, AFailedResumeLeavesConfigAndMetricsAsTheyWere) {
+  const fs::path run = trained_run("full_disk_resume_config");
+  const std::string config = io::read_file(run / "config.json");
+  const std::string metrics = io::read_file(run / "metrics.jsonl");
+  std::string out;
+  EXPECT_EQ(ddhgs_on_full_disk(run, "checkpoint",
+                               "-q train --resume " + run.string() + " --iterations 40", &out),
+            1)
+      << out;
+  EXPECT_EQ(io::read_file(run / "config.json"), config);
+  EXPECT_EQ(io::read_file(run / "metrics.jsonl"), metrics);
+}
+
+// export and render on a full disk: one error line, and no empty export/ or
+// renders/ folder left in the run.
+TEST(FullDisk, ExportAndRenderLeaveNoEmptyFolder) {
+  const fs::path run = trained_run("full_disk_folders");
+  for (const auto& [command, folder] :
+       {std::pair<std::string, std::string>{"export", "export"}, {"render", "renders"}}) {
+    std::string out;
+    EXPECT_EQ(ddhgs_on_full_disk(run, "", "-q " + command + " " + run.string(), &out), 1) << out;
+    EXPECT_EQ(error_lines(out).size(), 1u) << out;
+    EXPECT_FALSE(fs::exists(run / folder)) << command << "\n" << out;
+  }
+}
+
 // The run's files; its lock file names whoever locked it last.
 std::vector<std::pair<std::string, std::string>> run_files(const fs::path& run) {
   auto files = test::snapshot(run);

@@ -118,5 +118,43 @@ TEST(UserFiles, ADownscaleOf1000IsNamed) {
   EXPECT_FALSE(fs::exists(dir / "run"));
 }
 
+// `train --force` killed (kill -9) before its first checkpoint leaves
+// RUN.previous, the earlier run, and an unstarted RUN. The next train brings
+// the earlier run back before anything else: refused without --force (the
+// earlier run is whole again), replaced with it.
+TEST(UserFiles, ARunKilledWhileReplacingAnotherGivesTheEarlierOneBack) {
+  const fs::path dir = test::temp_dir("user_files_killed_force");
+  const fs::path run = trained_run(dir);
+  const std::string earlier = io::read_file(run / "gaussians.ply");
+  std::string out;
+  // Killed 4 s in: past the scene's loading, long before its first checkpoint.
+  test::run_command("timeout -s KILL 4 " + test::ddhgs_binary() + " -q train " +
+                        tiny_scene().string() + " --out " + run.string() +
+                        " --preset demo --iterations 1000000 --checkpoint-every 1000000 --force",
+                    &out);
+  ASSERT_TRUE(fs::exists(dir / "run.previous")) << out;
+  ASSERT_FALSE(fs::exists(run / "gaussians.ply")) << out;
+
+  expect_one_error("-q train " + tiny_scene().string() + " --out " + run.string() + kQuickTrain,
+                   {run.string(), "--force"});
+  EXPECT_FALSE(fs::exists(dir / "run.previous"));
+  EXPECT_EQ(io::read_file(run / "gaussians.ply"), earlier);
+
+  // Killed again, then replaced: the new run finishes and nothing is left aside.
+  test::run_command("timeout -s KILL 4 " + test::ddhgs_binary() + " -q train " +
+                        tiny_scene().string() + " --out " + run.string() +
+                        " --preset demo --iterations 1000000 --checkpoint-every 1000000 --force",
+                    &out);
+  ASSERT_TRUE(fs::exists(dir / "run.previous")) << out;
+  ASSERT_EQ(ddhgs("train " + tiny_scene().string() + " --out " + run.string() + kQuickTrain +
+                      " --force --seed 7",
+                  &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("is back from"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir / "run.previous"));
+  EXPECT_NE(io::read_file(run / "gaussians.ply"), earlier);
+}
+
 }  // namespace
 }  // namespace ddhgs

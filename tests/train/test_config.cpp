@@ -256,3 +256,60 @@ TEST(Config, ValuesOutsideTheirRangeNameTheKey) {
             }).find("RUN/config.json: key 'densify.min_opacity' is 1.5"),
             std::string::npos);
 }
+
+namespace {
+
+// Every number default.json holds (the schema) has a range, so no key takes
+// NaN, a negative rate or a count that runs until killed (issue 34).
+void expect_ranges(const nlohmann::json& node, const std::string& prefix) {
+  for (const auto& [key, value] : node.items()) {
+    const std::string path = prefix.empty() ? key : prefix + "." + key;
+    if (value.is_object()) {
+      expect_ranges(value, path);
+    } else if (path != "format_version" &&
+               (value.is_number() ||
+                (value.is_array() && !value.empty() && value[0].is_number()))) {
+      EXPECT_TRUE(train::has_range(path)) << path << " has no range in config_values.cpp";
+    }
+  }
+}
+
+}  // namespace
+
+TEST(Config, EveryNumberHasARange) {
+  expect_ranges(train::load_preset("default"), "");
+}
+
+TEST(Config, NonsenseValuesNameTheKey) {
+  auto c = train::load_preset("demo");
+  for (const char* bad :
+       {"densify.until_fraction=-1", "model.sh_degree_every_fraction=-1",
+        "camera_refinement.rotation_lr=-1", "loss.spectral_alpha=-1", "init.opacity=1",
+        "wavelength_encoder.frequencies=100000", "wavelength_encoder.frequencies=-1",
+        "optim.means_lr_init=1e38", "iterations=2000000000", "diffusion.sampler_samples=1000000"}) {
+    const std::string key = std::string(bad).substr(0, std::string(bad).find('='));
+    EXPECT_NE(error_of([&] { train::apply_assignment(c, bad); }).find("'" + key + "'"),
+              std::string::npos)
+        << bad;
+  }
+  // Arrays: each element.
+  EXPECT_NE(error_of([&] {
+              train::apply_assignment(c, "diffusion.channel_multipliers=[1,0,2]");
+            }).find("diffusion.channel_multipliers"),
+            std::string::npos);
+  // Across keys: no loss at all, a band range that keeps nothing.
+  auto none = train::load_preset("demo");
+  none["loss"]["l1"] = 0;
+  none["loss"]["dssim"] = 0;
+  EXPECT_NE(error_of([&] { train::validate_config(none, "X"); }).find("'loss.l1' and 'loss.dssim'"),
+            std::string::npos);
+  auto bands = train::load_preset("demo");
+  bands["data"]["band_min_nm"] = 900;
+  bands["data"]["band_max_nm"] = 400;
+  EXPECT_NE(error_of([&] { train::validate_config(bands, "X"); }).find("data.band_min_nm"),
+            std::string::npos);
+  // Edges that are fine: one of the two losses.
+  auto dssim_only = train::load_preset("demo");
+  dssim_only["loss"]["l1"] = 0;
+  train::validate_config(dssim_only, "X");
+}

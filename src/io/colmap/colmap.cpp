@@ -1,5 +1,7 @@
 #include "io/colmap/colmap.h"
 
+#include <map>
+
 #include <cmath>
 
 #include "core/error.h"
@@ -78,14 +80,37 @@ std::optional<fs::path> find_colmap_model(const fs::path& root) {
   return std::nullopt;
 }
 
+namespace {
+
+// One pose per image: a name or an id given twice would give one view two
+// poses and another none.
+void require_unique_images(const ColmapModel& model) {
+  std::map<int, const ColmapImage*> by_id;
+  std::map<std::string, const ColmapImage*> by_name;
+  for (const auto& image : model.images) {
+    if (auto [it, fresh] = by_id.emplace(image.image_id, &image); !fresh)
+      throw core::Error(model.images_file, "image id " + std::to_string(image.image_id) +
+                                               " is given twice (" + it->second->name + " and " +
+                                               image.name + ")");
+    if (auto [it, fresh] = by_name.emplace(image.name, &image); !fresh)
+      throw core::Error(model.images_file, "image " + image.name + " is given twice (ids " +
+                                               std::to_string(it->second->image_id) + " and " +
+                                               std::to_string(image.image_id) + ")");
+  }
+}
+
+}  // namespace
+
 ColmapModel read_colmap(const fs::path& dir) {
   bool binary = true;
   for (const char* name : {"cameras.bin", "images.bin"}) binary = binary && fs::exists(dir / name);
-  if (binary) return read_colmap_binary(dir);
-  core::require(fs::exists(dir / "cameras.txt") && fs::exists(dir / "images.txt"), dir,
-                "expected a COLMAP model: cameras.bin and images.bin, or cameras.txt and "
-                "images.txt");
-  return read_colmap_text(dir);
+  if (!binary)
+    core::require(fs::exists(dir / "cameras.txt") && fs::exists(dir / "images.txt"), dir,
+                  "expected a COLMAP model: cameras.bin and images.bin, or cameras.txt and "
+                  "images.txt");
+  ColmapModel model = binary ? read_colmap_binary(dir) : read_colmap_text(dir);
+  require_unique_images(model);
+  return model;
 }
 
 void check_colmap_model(const ColmapModel& model) {

@@ -55,6 +55,9 @@ struct CubeInfo {
   SampleType type = SampleType::F32;
   std::vector<double> wavelengths_nm;
   std::optional<double> scale_factor;  // as in Cube
+  // Samples that only decoding proves whole (compressed TIFF, PNG, JPEG);
+  // a raw cube is whole when its header and size agree.
+  bool compressed = false;
 };
 CubeInfo probe_cube(const std::filesystem::path& path, const CubeReadOptions& options = {});
 

@@ -267,6 +267,7 @@ CubeInfo probe_tiff(const fs::path& path) {
   CubeInfo info;
   info.height = layout.first.height, info.width = layout.first.width, info.bands = layout.bands;
   info.type = layout.type;
+  info.compressed = layout.compressed;
   return info;
 }
 

@@ -35,6 +35,24 @@ std::string system_error_text(int error) {
   return text;
 }
 
+CreatedFolders create_folders(const fs::path& folder, std::error_code& ec) {
+  CreatedFolders created;
+  for (fs::path p = folder; !p.empty() && !fs::exists(fs::symlink_status(p, ec));
+       p = p.parent_path()) {
+    created.folders.push_back(p);  // innermost first
+    if (p == p.parent_path()) break;
+  }
+  ec.clear();
+  fs::create_directories(folder, ec);
+  if (ec) created.folders.clear();
+  return created;
+}
+
+void CreatedFolders::remove_if_empty() const {
+  std::error_code ignored;
+  for (const fs::path& p : folders) fs::remove(p, ignored);  // remove() refuses a non-empty folder
+}
+
 void write_atomically(const fs::path& path, const std::function<void(const fs::path& tmp)>& write) {
   if (path.empty() || path.filename().empty()) throw core::Error(path, "not a file name to write");
   std::error_code status_ec;
@@ -43,26 +61,31 @@ void write_atomically(const fs::path& path, const std::function<void(const fs::p
   if (fs::exists(status) && !fs::is_regular_file(status))
     throw core::Error(path, "exists and is not a regular file; not replacing it");
   fs::path parent = path.parent_path();
+  CreatedFolders created;
   if (!parent.empty()) {
     std::error_code ec;
-    fs::create_directories(parent, ec);
+    created = create_folders(parent, ec);
     if (ec || !fs::is_directory(parent))
       throw core::Error(path, "cannot create its folder " + parent.string() + ": " + ec.message());
   }
   remove_stale_temporaries_once(parent.empty() ? fs::path(".") : parent);
   fs::path tmp = temporary_sibling(path);
+  // A failed write leaves nothing: no temporary, and no folder made for it
+  // (an empty RUN/export/ after a full disk).
   auto remove_tmp = [&] {
     std::error_code ignored;
     fs::remove(tmp, ignored);
+    created.remove_if_empty();
   };
   try {
     write(tmp);
   } catch (const core::Error&) {
     remove_tmp();
     throw;
-  } catch (const std::ios_base::failure& e) {
+  } catch (const std::ios_base::failure&) {
+    const int error = errno;  // the stream's own text is "basic_ios::clear: iostream error"
     remove_tmp();
-    throw core::Error(path, std::string("write failed: ") + e.what());
+    throw core::Error(path, "write failed: " + system_error_text(error));
   } catch (const fs::filesystem_error& e) {
     remove_tmp();
     throw core::Error(path, "write failed: " + system_error_text(e.code().value()));

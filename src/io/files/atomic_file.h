@@ -6,14 +6,25 @@
 #include <initializer_list>
 #include <string>
 #include <string_view>
+#include <system_error>
+#include <vector>
 
 namespace ddhgs::io {
+
+// The folders create_folders made, innermost first, so that a failed write
+// can take them away again (only while they are empty).
+struct CreatedFolders {
+  std::vector<std::filesystem::path> folders;
+  void remove_if_empty() const;
+};
+// create_directories(folder), remembering which folders did not exist.
+CreatedFolders create_folders(const std::filesystem::path& folder, std::error_code& ec);
 
 // Calls write(tmp_path), then renames tmp_path to path. On any exception the
 // temporary file is removed and the exception propagates (as core::Error
 // naming path for I/O failures such as a full disk). Missing parent folders
-// are created. Temporaries that dead processes left in the folder are
-// removed first (io/files/stale_files.h).
+// are created, and removed again when the write fails. Temporaries that dead processes left in the
+// folder are removed first (io/files/stale_files.h).
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write);
 

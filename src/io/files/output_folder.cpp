@@ -174,7 +174,7 @@ fs::path build_apart(const fs::path& folder, OutputKind kind,
                      const std::function<void(const fs::path& tmp)>& build) {
   const fs::path parent = folder.parent_path();
   std::error_code ec;
-  fs::create_directories(parent, ec);
+  const CreatedFolders created = create_folders(parent, ec);
   if (ec) throw core::Error(parent, "cannot create the folder (" + ec.message() + ")");
   remove_stale_temporaries_once(parent);
   const fs::path tmp =
@@ -188,6 +188,7 @@ fs::path build_apart(const fs::path& folder, OutputKind kind,
   } catch (...) {
     std::error_code ignored;  // the original error matters, not this one
     fs::remove_all(tmp, ignored);
+    created.remove_if_empty();  // no empty RUN/renders/ left by a failed render
     throw;
   }
   return tmp;
@@ -292,13 +293,31 @@ void FolderReplacement::begin(const PathContext& context) {
     created = fs::create_directories(folder_);
     write_output_marker(folder_, {request_.kind, replacing_, true, request_.entries});
   } catch (const std::exception& e) {
-    const std::string why = e.what();
+    const auto* fs_error = dynamic_cast<const fs::filesystem_error*>(&e);
+    const std::string why = fs_error ? fs_error->code().message() : core::message_of(e);
     // Made here, but its marker did not fit (a full disk): still empty, so
     // remove(), which never deletes contents, takes it away.
     if (created) fs::remove(folder_, ec);
     rollback();
     throw core::Error(folder_, "cannot create the folder (" + why + ")");
   }
+}
+
+bool FolderReplacement::restore_interrupted() {
+  folder_ = absolute_folder(request_.folder);
+  const auto marker = read_output_marker(folder_);
+  if (!marker || marker->kind != request_.kind || !marker->pending ||
+      output_kind(aside()) != request_.kind)
+    return false;
+  refuse_foreign_entries(folder_, *marker);  // nothing of the user's goes with it
+  std::error_code ec;
+  fs::remove_all(folder_, ec);
+  if (!ec) fs::rename(aside(), folder_, ec);
+  if (ec)
+    throw core::Error(aside(), "cannot bring the earlier " + to_string(request_.kind) +
+                                   " back to " + folder_.string() + " (" + ec.message() +
+                                   "); move it there yourself");
+  return true;
 }
 
 void FolderReplacement::resume() {

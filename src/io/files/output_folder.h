@@ -116,6 +116,12 @@ class FolderReplacement {
   // For an existing output of the requested kind: a replacement is pending
   // when its marker says so and aside() is still there.
   void resume();
+  // A replacement killed before the new output held anything worth keeping
+  // (the caller knows what is: a run's first checkpoint) left the folder
+  // marked pending and the earlier output in aside(): removes the folder
+  // (refused if it holds anything ddhgs did not write) and brings aside()
+  // back. Returns whether it did; false when there is nothing to restore.
+  bool restore_interrupted();
   void commit();
   void rollback();
   // Where an earlier output waits while the new one is written: FOLDER.previous.

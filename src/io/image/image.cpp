@@ -107,6 +107,7 @@ CubeInfo probe_image(const fs::path& path) {
   CubeInfo info;
   info.bands = 3;
   info.type = SampleType::U8;
+  info.compressed = true;
   if (is_jpeg(bytes)) {
     const JpegSize size = read_jpeg_size(path, bytes);
     info.height = size.height, info.width = size.width;

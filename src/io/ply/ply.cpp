@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/camera.h"
 #include "core/error.h"
 #include "io/files/atomic_file.h"
 #include "io/ply/ply_format.h"
@@ -163,6 +164,37 @@ int GaussianPly::sh_degree() const {
                     " coefficients per band; expected 0, 3, 8 or 15");
 }
 
+namespace {
+
+// Values no renderer can use end the read, naming the file and the
+// property, instead of failing later inside the rasterizer.
+void require_renderable(const fs::path& path, const GaussianPly& ply) {
+  if (ply.means.size(0) == 0) return;
+  const std::pair<const torch::Tensor*, const char*> all[] = {
+      {&ply.means, "x y z"},  {&ply.log_scales, "scale_*"},
+      {&ply.quats, "rot_*"},  {&ply.logit_opacities, "opacity"},
+      {&ply.sh_dc, "f_dc_*"}, {&ply.sh_rest, "f_rest_*"}};
+  for (const auto& [tensor, name] : all) {
+    if (tensor->numel() == 0) continue;
+    const torch::Tensor bad = ~torch::isfinite(*tensor).reshape({tensor->size(0), -1}).all(1);
+    if (bad.any().item<bool>())
+      throw core::Error(path, std::string(name) + " of Gaussian " +
+                                  std::to_string(bad.nonzero()[0][0].item<int64_t>()) +
+                                  " is NaN or infinite");
+  }
+  const double far = ply.means.abs().max().item<double>();
+  if (far > core::kMaxSceneExtent)
+    throw core::Error(path, "a Gaussian lies " + std::to_string(far) +
+                                " units from the origin (x y z; at most 1e7)");
+  const torch::Tensor zero = ply.quats.abs().sum(1) == 0;
+  if (zero.any().item<bool>())
+    throw core::Error(path, "rot_0..3 of Gaussian " +
+                                std::to_string(zero.nonzero()[0][0].item<int64_t>()) +
+                                " are all 0 (no rotation quaternion)");
+}
+
+}  // namespace
+
 GaussianPly read_gaussian_ply(const fs::path& path) {
   OpenPly file;
   open_ply(path, file);
@@ -208,6 +240,7 @@ GaussianPly read_gaussian_ply(const fs::path& path) {
   // Band-major on disk and in memory: f_rest_{b*K+k} is sh_rest[g, b, k].
   if (K > 0) add_columns(columns, rest, ply.sh_rest);
   ply::read_element(file.in, path, file.header, file.vertex, columns);
+  require_renderable(path, ply);
   return ply;
 }
 
@@ -278,6 +311,15 @@ PointCloud read_point_ply(const fs::path& path) {
     add_columns(columns, spectra, points.spectra);
   }
   ply::read_element(file.in, path, file.header, file.vertex, columns);
+  // Float32 splats cannot place a point beyond this (core/camera.h).
+  if (P > 0) {
+    const double far = points.xyz.abs().max().item<double>();
+    if (!(far <= core::kMaxSceneExtent))
+      throw core::Error(path, "a point coordinate is " + std::to_string(far) +
+                                  " (NaN, infinite or beyond 1e7 scene units)");
+    if (points.spectra.defined() && !torch::isfinite(points.spectra).all().item<bool>())
+      throw core::Error(path, "a point's spectrum holds NaN or infinite values");
+  }
   return points;
 }
 

@@ -37,6 +37,7 @@ struct Found {
   std::vector<double> wavelengths_nm;
   std::optional<double> scale;
   PointCloud points;
+  fs::path points_file;  // points.ply, when the points came from one
   bool rgb = false;
   bool explicit_split = false;
   std::set<std::string> train_keys, test_keys;
@@ -97,9 +98,10 @@ void find_points(const fs::path& root, const TransformsFile& tf, const fs::path&
                  Found& found) {
   if (!tf.ply_file_path.empty()) {
     fs::path ply = root / tf.ply_file_path;
-    if (fs::exists(ply))
+    if (fs::exists(ply)) {
       found.points = read_point_ply(ply);
-    else
+      found.points_file = ply;
+    } else
       found.warnings.push_back(file.string() + ": ply_file_path " + ply.string() +
                                " does not exist; no initial points");
     return;
@@ -366,6 +368,13 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
                                   first.bands, origin, kept.front().data_path),
                found.rgb, origin);
 
+  // Spectra per point are the cubes' bands (before --band-range and --bin).
+  const torch::Tensor& spectra = found.points.spectra;
+  if (!found.rgb && spectra.defined() && spectra.size(1) != scene->source_bands)
+    throw core::Error(found.points_file, "holds " + std::to_string(spectra.size(1)) +
+                                             " spectral values per point (spec_*)" +
+                                             ", but the cubes have " +
+                                             std::to_string(scene->source_bands) + " bands");
   // A downscale that leaves nothing of a view is a mistyped flag, said as
   // such before anything is read.
   for (const auto& c : kept) {
@@ -376,6 +385,9 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
                         " px, which leaves no pixel; at most " +
                         std::to_string(std::max(1, std::min(w, h))));
   }
+  for (const auto& c : kept)
+    if (const std::string problem = core::camera_problem(c.camera); !problem.empty())
+      throw core::Error(origin, "view " + c.name + ": " + problem);
   for (const auto& c : kept) {
     View v;
     v.name = c.name;

@@ -89,6 +89,8 @@ core::Camera read_camera_json(const fs::path& path) {
   in.cy = finite_number(path, member(path, root, "cy"), "cy");
   if (in.fx <= 0 || in.fy <= 0) throw core::Error(path, "\"fx\" and \"fy\" must be positive");
   camera.world_to_camera = read_matrix(path, member(path, root, "world_to_camera"));
+  if (const std::string problem = core::camera_problem(camera); !problem.empty())
+    throw core::Error(path, problem);
   return camera;
 }
 

@@ -44,7 +44,11 @@ class Reader {
 
   std::string string(const json& value, const std::string& where) const {
     if (!value.is_string()) fail(where, "expected a string, found " + type_name(value));
-    return value.get<std::string>();
+    std::string text = value.get<std::string>();
+    // No value here (file names, camera models) holds a NUL byte; the
+    // system would cut a file name at it and read another file.
+    if (text.find('\0') != std::string::npos) fail(where, "holds a NUL byte (\\u0000)");
+    return text;
   }
 
   const json& array(const json& value, const std::string& where) const {
@@ -191,6 +195,8 @@ TransformsFile parse(const Reader& in, const json& root) {
 
   if (const json* v = in.find(root, "wavelengths")) {
     const json& list = in.array(*v, "wavelengths");
+    if (list.empty())
+      in.fail("wavelengths", "an empty list (leave the key out, or give one wavelength per band)");
     for (size_t i = 0; i < list.size(); ++i)
       file.wavelengths_nm.push_back(
           in.positive(list[i], "wavelengths[" + std::to_string(i) + "]", "a wavelength in nm"));
@@ -204,8 +210,13 @@ TransformsFile parse(const Reader& in, const json& root) {
     if (s <= 0) in.fail("scale", "expected a positive divisor");
     file.scale = s;
   }
-  if (const json* v = in.find(root, "train_filenames"))
+  if (const json* v = in.find(root, "train_filenames")) {
     file.train_files = in.strings(*v, "train_filenames");
+    if (file.train_files.empty())
+      in.fail("train_filenames",
+              "an empty list: no view to train on (list the training views, "
+              "or leave out both split lists for the default split)");
+  }
   if (const json* v = in.find(root, "test_filenames"))
     file.test_files = in.strings(*v, "test_filenames");
   return file;
