@@ -44,7 +44,9 @@ constexpr Range kRanges[] = {
     {"data.bin", 1, 100000, false, true},
     {"data.cache_mb", 0, kMaxMiB, false, true},
     {"model.sh_degree", 0, 3, false, true},
-    {"model.sh_degree_every_fraction", 0, 1, false},
+    // Fractions of the run for intervals may pass 1 (decay over a longer run
+    // than this one, never reset): only their sign is nonsense.
+    {"model.sh_degree_every_fraction", 0, 1e6, false},
     {"model.background", -1e6, 1e6, false},
     {"init.random_points", 1, 1e8, false, true},
     {"init.extra_random_per_pixel", 0, 1000, false},
@@ -53,7 +55,7 @@ constexpr Range kRanges[] = {
     {"init.colour_views", 1, 1e6, false, true},
     {"optim.means_lr_init", 0, kMaxRate, false},
     {"optim.means_lr_final", 0, kMaxRate, false},
-    {"optim.means_lr_decay_fraction", 0, 1, true},
+    {"optim.means_lr_decay_fraction", 0, 1e6, true},
     {"optim.sh_dc_lr", 0, kMaxRate, false},
     {"optim.sh_rest_lr_divisor", 0, 1e9, true},
     {"optim.opacity_lr", 0, kMaxRate, false},
@@ -99,7 +101,7 @@ constexpr Range kRanges[] = {
     {"densify.every", 0, kMaxCount, false, true},
     {"densify.grad_threshold", 0, 1e6, false},
     {"densify.percent_dense", 0, 1, false},
-    {"densify.opacity_reset_every_fraction", 0, 1, false},
+    {"densify.opacity_reset_every_fraction", 0, 1e6, false},
     {"densify.min_opacity", 0, 1, false},
     {"densify.max_screen_px", 0, 1e9, false},
     {"densify.max_world_fraction", 0, 1e6, false},

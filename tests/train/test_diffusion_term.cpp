@@ -88,13 +88,13 @@ TEST(DiffusionTerm, OptionsComeFromLossDiffusionAndTheDiffusionSection) {
             }).find("preset.json: diffusion: prediction must be"),
             std::string::npos);
   bad = config;
-  train::set_key(bad, "diffusion.start_strength", "0");
+  bad["diffusion"]["start_strength"] = 0;  // as a hand-edited config.json holds it
   EXPECT_NE(error_of([&] {
               train::with_bands(train::parse_run_config(bad, "preset.json").diffusion, 7);
-            }).find("preset.json: diffusion: start strength"),
+            }).find("preset.json: key 'diffusion.start_strength' is 0"),
             std::string::npos);
   bad = config;
-  train::set_key(bad, "diffusion.lr", "-1");
+  bad["diffusion"]["lr"] = -1;
   EXPECT_NE(error_of([&] {
               train::with_bands(train::parse_run_config(bad, "preset.json").diffusion, 7);
             }).find("diffusion.lr"),
@@ -194,10 +194,10 @@ TEST(DiffusionFinetune, OptionsAndLearningRateSchedule) {
   EXPECT_EQ(o.finetune_steps, 250);
   EXPECT_EQ(o.finetune_batch, 3);
   EXPECT_EQ(o.finetune_crop, 32);
-  train::set_key(config, "diffusion.finetune_batch", "0");
+  config["diffusion"]["finetune_batch"] = 0;
   EXPECT_NE(error_of([&] {
               train::with_bands(train::parse_run_config(config, "preset.json").diffusion, 4);
-            }).find("preset.json: diffusion.finetune_batch must be >= 1"),
+            }).find("preset.json: key 'diffusion.finetune_batch' is 0"),
             std::string::npos);
 
   // Cosine from lr to 0: lr (1 + cos(pi k / K)) / 2.
