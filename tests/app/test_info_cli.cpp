@@ -68,6 +68,12 @@ TEST(InfoCli, DescribesAHealthyScene) {
                        "backdrop    masked to 0.078 to 0.078 over 5 bands on 50 % of the "
                        "view borders"))
       << out;
+  // Every pixel's spectrum is 10 i / 255 in all 5 bands: one direction, (1,
+  // 1, 1, 1, 1), holds all the variance of the 6 x 48 pixels.
+  EXPECT_TRUE(contains(out,
+                       "spectra     signal in 1 of 5 components above the noise floor (99 % of "
+                       "the variance in 1, 99.9 % in 1; 6 training views, 288 pixels)"))
+      << out;
   EXPECT_TRUE(contains(out, "problems    none")) << out;
 }
 
@@ -103,6 +109,11 @@ TEST(InfoCli, JsonAtDownscale) {
   EXPECT_TRUE(j["border"]["masked"].get<bool>());
   EXPECT_NEAR(j["border"]["colour"][0].get<double>(), 20.0 / 255, 1e-6);
   EXPECT_TRUE(j["errors"].empty());
+  const auto& pca = j["spectral_pca"];
+  EXPECT_NEAR(pca["energy"][0].get<double>(), 1.0, 1e-9);
+  EXPECT_EQ(pca["rank_99_9"], 1);
+  EXPECT_EQ(pca["signal_rank"], 1);
+  EXPECT_EQ(pca["pixels"], 6 * 4 * 3);
 }
 
 TEST(InfoCli, ListsEveryProblem) {

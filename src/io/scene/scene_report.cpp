@@ -125,4 +125,17 @@ SceneReport inspect_scene(const Scene& scene, int sample_reads) {
   return report;
 }
 
+torch::Tensor sample_spectra(const Scene& scene, int max_views, int64_t per_view) {
+  core::require(!scene.train.empty(), scene.root, "no training views to sample spectra from");
+  const int count = std::min<int>(max_views, int(scene.train.size()));
+  std::vector<torch::Tensor> samples;
+  for (int i = 0; i < count; ++i) {
+    const int view = scene.train[size_t(int64_t(i) * int64_t(scene.train.size()) / count)];
+    const torch::Tensor pixels = scene.image(view).reshape({-1, scene.bands()});
+    const int64_t step = std::max<int64_t>(1, (pixels.size(0) + per_view - 1) / per_view);
+    samples.push_back(pixels.slice(0, 0, pixels.size(0), step).clone());
+  }
+  return torch::cat(samples);
+}
+
 }  // namespace ddhgs::io

@@ -40,4 +40,9 @@ struct SceneReport {
 // reads up to `sample_reads` cubes in full to catch NaN/Inf samples.
 SceneReport inspect_scene(const Scene& scene, int sample_reads = 3);
 
+// Pixel spectra for a PCA of the scene (core/spectral_pca.h): up to
+// `max_views` training views spread along the split, every k-th pixel so
+// that each gives at most `per_view` samples. [M, N] float32, as loaded.
+torch::Tensor sample_spectra(const Scene& scene, int max_views = 8, int64_t per_view = 20000);
+
 }  // namespace ddhgs::io

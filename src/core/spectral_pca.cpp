@@ -1,0 +1,59 @@
+#include "core/spectral_pca.h"
+
+#include <algorithm>
+
+#include "core/error.h"
+
+namespace ddhgs::core {
+
+double SpectralPca::kept(int64_t k) const {
+  double sum = 0;
+  for (int64_t i = 0; i < std::min<int64_t>(k, bands()); ++i) sum += energy[size_t(i)];
+  return std::min(sum, 1.0);
+}
+
+int64_t SpectralPca::rank_for(double share) const {
+  double sum = 0;
+  for (int64_t i = 0; i < bands(); ++i) {
+    if (sum >= share) return i;
+    sum += energy[size_t(i)];
+  }
+  return sum > 0 ? bands() : 0;
+}
+
+int64_t SpectralPca::signal_rank() const {
+  const int64_t cap = rank_for(0.999);
+  if (bands() < kMinBandsForFloor) return cap;
+  std::vector<double> sorted = energy;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double floor = sorted[sorted.size() / 2];
+  int64_t k = 0;
+  while (k < cap && energy[size_t(k)] > kNoiseFactor * floor) ++k;
+  return k;
+}
+
+SpectralPca spectral_pca(const torch::Tensor& spectra) {
+  require(spectra.dim() == 2 && spectra.size(0) >= 1 && spectra.size(1) >= 1,
+          "spectral_pca: expected spectra [M, N] with M, N >= 1");
+  const torch::Tensor x = spectra.to(torch::kFloat64);
+  SpectralPca pca;
+  pca.mean = x.mean(0);
+  const torch::Tensor centred = x - pca.mean;
+  const torch::Tensor covariance = centred.t().matmul(centred) / double(x.size(0));
+  auto [values, vectors] = torch::linalg::eigh(covariance, "L");  // ascending
+  values = values.flip(0).clamp_min(0);
+  pca.basis = vectors.flip(1).contiguous();
+  // A deterministic sign: each component's largest entry is positive.
+  const torch::Tensor largest = pca.basis.abs().argmax(0);
+  const torch::Tensor sign =
+      pca.basis.gather(0, largest.unsqueeze(0)).squeeze(0).sign().clamp_min(0) * 2 - 1;
+  pca.basis = pca.basis * sign;
+  const double total = values.sum().item<double>();
+  pca.energy.assign(size_t(values.size(0)), 0.0);
+  if (total > 0)
+    for (int64_t i = 0; i < values.size(0); ++i)
+      pca.energy[size_t(i)] = values[i].item<double>() / total;
+  return pca;
+}
+
+}  // namespace ddhgs::core
