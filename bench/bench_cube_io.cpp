@@ -56,8 +56,8 @@ const fs::path& cube_dir() {
     const torch::Tensor x = torch::linspace(0, 1, 640).view({1, 640, 1});
     const torch::Tensor y = torch::linspace(0, 1, 512).view({512, 1, 1});
     const torch::Tensor band = torch::linspace(0, 1, 141).view({1, 1, 141});
-    const torch::Tensor smooth = 20000 + 15000 * torch::sin(3 * x + 2 * y + 4 * band) +
-                                 200 * torch::randn({512, 640, 141});
+    const torch::Tensor smooth =
+        20000 + 15000 * torch::sin(3 * x + 2 * y + 4 * band) + 200 * torch::randn({512, 640, 141});
     write_lzw_tiff(d / "lzw.tif", smooth);
     return d;
   }();

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <vector>
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/parallel.h"
 #include "io/scene/scene_report.h"
 
 namespace ddhgs::train {
@@ -77,14 +79,31 @@ void check_scene_before_training(const io::Scene& scene) {
   // compressed view, decoded once here rather than when training first draws
   // it, possibly hours in. Raw integer cubes need no read: the header checks
   // above prove them whole.
+  // Views are decoded side by side (decoders run on one thread each), a
+  // batch at a time so that at most kBatch decoded views are held; the first
+  // problem in view order is reported, whichever thread met it.
   std::vector<bool> held_out(scene.views.size(), false);
   for (int v : scene.test) held_out[size_t(v)] = true;
-  for (size_t v = 0; v < scene.views.size(); ++v) {
-    const io::View& view = scene.views[v];
-    if (held_out[v] || needs_full_read(view.data_path, scene))
-      require_plausible(scene.image(int(v)), view.data_path, scene.scale);
-    if (!view.clean_path.empty() && (held_out[v] || needs_full_read(view.clean_path, scene)))
-      require_plausible(scene.clean_image(int(v)), view.clean_path, scene.scale);
+  const int64_t count = int64_t(scene.views.size());
+  constexpr int64_t kBatch = 8;
+  std::vector<std::string> problems(scene.views.size());
+  for (int64_t first = 0; first < count; first += kBatch) {
+    core::parallel_for(first, std::min(count, first + kBatch), 1, [&](int64_t begin, int64_t end) {
+      for (int64_t v = begin; v < end; ++v) {
+        const io::View& view = scene.views[size_t(v)];
+        try {
+          if (held_out[size_t(v)] || needs_full_read(view.data_path, scene))
+            require_plausible(scene.image(int(v)), view.data_path, scene.scale);
+          if (!view.clean_path.empty() &&
+              (held_out[size_t(v)] || needs_full_read(view.clean_path, scene)))
+            require_plausible(scene.clean_image(int(v)), view.clean_path, scene.scale);
+        } catch (const core::Error& e) {
+          problems[size_t(v)] = e.what();
+        }
+      }
+    });
+    for (int64_t v = first; v < std::min(count, first + kBatch); ++v)
+      if (!problems[size_t(v)].empty()) throw core::Error(problems[size_t(v)]);
   }
   if (scene.test.empty())
     core::log_warn(scene.root.string() +
