@@ -3,40 +3,15 @@
 // Run: build/bench/bench_cube_io  (reports bytes/s of stored samples)
 #include <benchmark/benchmark.h>
 
-#include <tiffio.h>
-
 #include <filesystem>
 #include <vector>
 
 #include "io/cube/cube.h"
+#include "lzw_tiff.h"
 
 namespace {
 namespace fs = std::filesystem;
 using namespace ddhgs::io;
-
-// A smooth 16-bit cube (a spectrum varying across the view, plus noise, as a
-// real capture), LZW-compressed in strips of 16 rows, band-interleaved by
-// pixel: what `train` decodes once per compressed view before its first
-// iteration (issue 34).
-void write_lzw_tiff(const fs::path& path, const torch::Tensor& values) {
-  const int64_t h = values.size(0), w = values.size(1), b = values.size(2);
-  const torch::Tensor i32 = values.round().clamp(0, 65535).to(torch::kInt32).contiguous();
-  std::vector<uint16_t> samples(i32.data_ptr<int32_t>(), i32.data_ptr<int32_t>() + i32.numel());
-  TIFF* tif = TIFFOpen(path.c_str(), "w");
-  TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, uint32_t(w));
-  TIFFSetField(tif, TIFFTAG_IMAGELENGTH, uint32_t(h));
-  TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, uint16_t(b));
-  TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, uint16_t(16));
-  TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_UINT);
-  TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
-  TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
-  TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_LZW);
-  TIFFSetField(tif, TIFFTAG_PREDICTOR, PREDICTOR_HORIZONTAL);
-  TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, uint32_t(16));
-  for (int64_t y = 0; y < h; ++y)
-    TIFFWriteScanline(tif, samples.data() + y * w * b, uint32_t(y), 0);
-  TIFFClose(tif);
-}
 
 const fs::path& cube_dir() {
   static fs::path dir = [] {
@@ -58,7 +33,7 @@ const fs::path& cube_dir() {
     const torch::Tensor band = torch::linspace(0, 1, 141).view({1, 1, 141});
     const torch::Tensor smooth =
         20000 + 15000 * torch::sin(3 * x + 2 * y + 4 * band) + 200 * torch::randn({512, 640, 141});
-    write_lzw_tiff(d / "lzw.tif", smooth);
+    ddhgs::bench::write_lzw_tiff(d / "lzw.tif", smooth);
     return d;
   }();
   return dir;

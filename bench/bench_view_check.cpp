@@ -3,8 +3,6 @@
 // views (smooth spectra with noise, as a capture) and times
 // train::check_scene_before_training on one thread and on all of them.
 // Run: build/bench/bench_view_check [VIEWS=16] [WIDTH=640] [HEIGHT=512] [BANDS=141]
-#include <tiffio.h>
-
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -15,31 +13,12 @@
 #include "core/threads.h"
 #include "io/scene/scene.h"
 #include "io/transforms/transforms.h"
+#include "lzw_tiff.h"
 #include "train/run_checks.h"
 
 namespace {
 namespace fs = std::filesystem;
 using namespace ddhgs;
-
-void write_lzw_tiff(const fs::path& path, const torch::Tensor& values) {
-  const int64_t h = values.size(0), w = values.size(1), b = values.size(2);
-  const torch::Tensor i32 = values.round().clamp(0, 65535).to(torch::kInt32).contiguous();
-  std::vector<uint16_t> samples(i32.data_ptr<int32_t>(), i32.data_ptr<int32_t>() + i32.numel());
-  TIFF* tif = TIFFOpen(path.c_str(), "w");
-  TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, uint32_t(w));
-  TIFFSetField(tif, TIFFTAG_IMAGELENGTH, uint32_t(h));
-  TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, uint16_t(b));
-  TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, uint16_t(16));
-  TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_UINT);
-  TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
-  TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
-  TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_LZW);
-  TIFFSetField(tif, TIFFTAG_PREDICTOR, PREDICTOR_HORIZONTAL);
-  TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, uint32_t(16));
-  for (int64_t y = 0; y < h; ++y)
-    TIFFWriteScanline(tif, samples.data() + y * w * b, uint32_t(y), 0);
-  TIFFClose(tif);
-}
 
 fs::path write_scene(int views, int width, int height, int bands) {
   const fs::path root = fs::temp_directory_path() / "ddhgs-bench-view-check";
@@ -62,9 +41,9 @@ fs::path write_scene(int views, int width, int height, int bands) {
     const double a = 6.283 * i / views;
     f.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(
         core::look_at({3 * std::cos(a), 3 * std::sin(a), 1}, {0, 0, 0}, {0, 0, 1}));
-    write_lzw_tiff(root / f.hyperspectral_file_path,
-                   20000 + 15000 * torch::sin(3 * x + 2 * y + 4 * band + 0.1 * i) +
-                       200 * torch::randn({height, width, bands}));
+    bench::write_lzw_tiff(root / f.hyperspectral_file_path,
+                          20000 + 15000 * torch::sin(3 * x + 2 * y + 4 * band + 0.1 * i) +
+                              200 * torch::randn({height, width, bands}));
     file.frames.push_back(f);
   }
   io::write_transforms(root / "transforms.json", file);
