@@ -48,7 +48,8 @@ int main(int argc, char** argv) {
   std::vector<int64_t> ranks;
   for (int i = 2; i < argc; ++i) ranks.push_back(std::atoll(argv[i]));
   if (ranks.empty()) ranks = {2, 3, 4, 6, 8, 12, 16, 32};
-  const core::SpectralPca pca = core::spectral_pca(io::sample_spectra(*scene, 8));
+  const io::SpectraSample sample = io::sample_spectra(*scene, 8);
+  const core::SpectralPca pca = core::spectral_pca(sample.spectra);
   const int64_t n = pca.bands();
 
   // Held-out views (or the first 4 training views), noisy and clean.
@@ -73,8 +74,11 @@ int main(int argc, char** argv) {
   const int64_t worst_count = std::max<int64_t>(1, n / 10);
   const torch::Tensor worst = snr.argsort().slice(0, 0, worst_count);
 
-  std::printf("%s: %lld bands, signal rank %lld, %zu views; PSNR against the clean cubes (dB)\n",
-              argv[1], (long long)n, (long long)pca.signal_rank(), views.size());
+  std::printf(
+      "%s: %lld bands, signal rank %lld (whitened: %lld), %zu views; PSNR against the clean "
+      "cubes (dB)\n",
+      argv[1], (long long)n, (long long)pca.signal_rank(),
+      (long long)core::whitened_signal_rank(sample.spectra, sample.noise_sigma), views.size());
   std::printf(
       "| rank | variance kept | all bands | lowest-SNR %lld bands |\n| --- | --- | --- | --- |\n",
       (long long)worst_count);

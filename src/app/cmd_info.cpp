@@ -96,6 +96,7 @@ struct SpectraCheck {
   int views = 0;
   int64_t samples = 0;
   std::string why_not;
+  int64_t whitened_rank = 0;  // core::whitened_signal_rank
 };
 
 constexpr int kPcaViews = 8;
@@ -105,9 +106,9 @@ SpectraCheck spectra_of(const io::Scene& scene, const io::SceneReport& r) {
   if (!r.errors.empty()) return {std::nullopt, 0, 0, "views fail to load"};
   if (scene.train.empty()) return {std::nullopt, 0, 0, "no training views"};
   try {
-    const torch::Tensor spectra = io::sample_spectra(scene, kPcaViews);
-    return {core::spectral_pca(spectra), std::min<int>(kPcaViews, int(scene.train.size())),
-            spectra.size(0), ""};
+    const io::SpectraSample sample = io::sample_spectra(scene, kPcaViews);
+    return {core::spectral_pca(sample.spectra), sample.views, sample.spectra.size(0), "",
+            core::whitened_signal_rank(sample.spectra, sample.noise_sigma)};
   } catch (const core::Error& e) {
     return {std::nullopt, 0, 0, e.what()};
   }
@@ -120,7 +121,8 @@ std::string spectra_line(const SpectraCheck& c) {
   const core::SpectralPca& p = *c.pca;
   if (p.rank_for(0.999) == 0) return "do not vary";
   return "signal in " + std::to_string(p.signal_rank()) + " of " + std::to_string(p.bands()) +
-         " components above the noise floor (99 % of the variance in " +
+         " components above the noise floor, " + std::to_string(c.whitened_rank) +
+         " with each band's noise whitened (99 % of the variance in " +
          std::to_string(p.rank_for(0.99)) + ", 99.9 % in " + std::to_string(p.rank_for(0.999)) +
          "; " + std::to_string(c.views) + " training views, " + std::to_string(c.samples) +
          " pixels)";
@@ -180,6 +182,7 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r, const B
                          {"rank_99", spectra.pca->rank_for(0.99)},
                          {"rank_99_9", spectra.pca->rank_for(0.999)},
                          {"signal_rank", spectra.pca->signal_rank()},
+                         {"whitened_signal_rank", spectra.whitened_rank},
                          {"views", spectra.views},
                          {"pixels", spectra.samples}};
   j["notes"] = scene.notes;

@@ -56,4 +56,25 @@ SpectralPca spectral_pca(const torch::Tensor& spectra) {
   return pca;
 }
 
+torch::Tensor band_noise_sigma(const torch::Tensor& image) {
+  require(image.dim() == 3 && image.size(1) >= 2, "band_noise_sigma: expected an image [H, W, N]");
+  const torch::Tensor x = image.to(torch::kFloat64);
+  const torch::Tensor diff =
+      (x.slice(1, 1, x.size(1)) - x.slice(1, 0, x.size(1) - 1)).abs().reshape({-1, x.size(2)});
+  return std::get<0>(diff.median(0)) / (0.6745 * std::sqrt(2.0));
+}
+
+int64_t whitened_signal_rank(const torch::Tensor& spectra, const torch::Tensor& noise_sigma) {
+  require(spectra.dim() == 2 && noise_sigma.dim() == 1 && noise_sigma.size(0) == spectra.size(1),
+          "whitened_signal_rank: expected spectra [M, N] and noise_sigma [N]");
+  const torch::Tensor sigma = noise_sigma.to(torch::kFloat64);
+  const double top = sigma.max().item<double>();
+  if (!(top > 0)) return spectral_pca(spectra).rank_for(0.999);  // no noise to whiten by
+  const torch::Tensor x = spectra.to(torch::kFloat64) / sigma.clamp_min(1e-6 * top);
+  const torch::Tensor centred = x - x.mean(0);
+  const torch::Tensor values =
+      torch::linalg::eigvalsh(centred.t().matmul(centred) / double(x.size(0)), "L");
+  return (values > kWhitenedThreshold).sum().item<int64_t>();
+}
+
 }  // namespace ddhgs::core

@@ -37,4 +37,17 @@ struct SpectralPca {
 // Computed in float64 from the N x N covariance about the mean.
 SpectralPca spectral_pca(const torch::Tensor& spectra);
 
+// Per-band noise level of an image [H, W, N] (W >= 2): the median absolute
+// difference of horizontally adjacent pixels over 0.6745 sqrt(2), the
+// standard deviation of white noise, robust to the image's edges. [N] float64.
+torch::Tensor band_noise_sigma(const torch::Tensor& image);
+
+// The signal's rank however uneven the noise is across bands: the spectra
+// with each band divided by its noise level (noise then has variance 1 in
+// every direction, as in a minimum-noise-fraction transform), counting the
+// components whose variance exceeds kWhitenedThreshold. spectra [M, N],
+// noise_sigma [N] (bands without noise count as 1e-6 of the largest).
+int64_t whitened_signal_rank(const torch::Tensor& spectra, const torch::Tensor& noise_sigma);
+constexpr double kWhitenedThreshold = 2;
+
 }  // namespace ddhgs::core

@@ -71,8 +71,9 @@ TEST(InfoCli, DescribesAHealthyScene) {
   // Every pixel's spectrum is 10 i / 255 in all 5 bands: one direction, (1,
   // 1, 1, 1, 1), holds all the variance of the 6 x 48 pixels.
   EXPECT_TRUE(contains(out,
-                       "spectra     signal in 1 of 5 components above the noise floor (99 % of "
-                       "the variance in 1, 99.9 % in 1; 6 training views, 288 pixels)"))
+                       "spectra     signal in 1 of 5 components above the noise floor, 1 with "
+                       "each band's noise whitened (99 % of the variance in 1, 99.9 % in 1; 6 "
+                       "training views, 288 pixels)"))
       << out;
   EXPECT_TRUE(contains(out, "problems    none")) << out;
 }
@@ -113,6 +114,7 @@ TEST(InfoCli, JsonAtDownscale) {
   EXPECT_NEAR(pca["energy"][0].get<double>(), 1.0, 1e-9);
   EXPECT_EQ(pca["rank_99_9"], 1);
   EXPECT_EQ(pca["signal_rank"], 1);
+  EXPECT_EQ(pca["whitened_signal_rank"], 1);  // no noise: the 99.9 % rank
   EXPECT_EQ(pca["pixels"], 6 * 4 * 3);
 }
 

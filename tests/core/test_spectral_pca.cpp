@@ -52,6 +52,41 @@ TEST(SpectralPca, SignalRankStandsAboveTheNoiseFloor) {
   EXPECT_EQ(core::spectral_pca(a.matmul(b)).signal_rank(), K);
 }
 
+// White noise of known level, on an image with a sharp edge: the median of
+// neighbour differences finds the level within a few per cent.
+TEST(SpectralPca, BandNoiseSigmaMeasuresWhiteNoise) {
+  torch::manual_seed(5);
+  torch::Tensor image = torch::zeros({200, 200, 3}, torch::kFloat64);
+  image.slice(1, 100, 200) += 0.5;  // an edge the median ignores
+  const torch::Tensor sigma = torch::tensor({0.01, 0.05, 0.002}, torch::kFloat64);
+  const torch::Tensor measured =
+      core::band_noise_sigma(image + torch::randn({200, 200, 3}, torch::kFloat64) * sigma);
+  EXPECT_TRUE(torch::allclose(measured, sigma, 0.05, 0)) << measured;
+}
+
+// Noise 30 times stronger in a tenth of the bands (a sensor's weak edges):
+// the unwhitened floor rule counts those bands' noise as signal, the
+// whitened rank finds the 3 signal components.
+TEST(SpectralPca, WhitenedRankIgnoresUnevenNoise) {
+  torch::manual_seed(6);
+  const int64_t H = 100, W = 100, N = 80, K = 3;
+  const torch::Tensor wl = torch::linspace(0, 1, N, torch::kFloat64);
+  const torch::Tensor b = torch::stack({torch::sin(3 * wl), torch::exp(-wl * 4), wl * wl});
+  // Smooth abundances across the image, so neighbour differences see noise only.
+  const torch::Tensor u = torch::linspace(0, 1, W, torch::kFloat64).view({1, W, 1});
+  const torch::Tensor v = torch::linspace(0, 1, H, torch::kFloat64).view({H, 1, 1});
+  const torch::Tensor a =
+      torch::cat({torch::sin(6 * u + 0 * v), torch::cos(5 * v + 0 * u), (u * v) * 2 - 0.5},
+                 2);  // [H, W, 3]
+  torch::Tensor sigma = torch::full({N}, 0.002, torch::kFloat64);
+  sigma.slice(0, 0, N / 10) *= 30;
+  const torch::Tensor image =
+      a.matmul(b) + torch::randn({H, W, N}, torch::kFloat64) * sigma;  // [H, W, N]
+  const torch::Tensor spectra = image.reshape({-1, N});
+  EXPECT_GT(core::spectral_pca(spectra).signal_rank(), K);
+  EXPECT_EQ(core::whitened_signal_rank(spectra, core::band_noise_sigma(image)), K);
+}
+
 // Hand-computed: two bands, independent, variances 4 and 1 (samples +-2 and
 // +-1 in all four combinations): 80 % and 20 %, axis-aligned components.
 TEST(SpectralPca, EnergiesMatchAHandComputedCovariance) {

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "core/error.h"
+#include "core/spectral_pca.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
@@ -125,17 +126,24 @@ SceneReport inspect_scene(const Scene& scene, int sample_reads) {
   return report;
 }
 
-torch::Tensor sample_spectra(const Scene& scene, int max_views, int64_t per_view) {
+SpectraSample sample_spectra(const Scene& scene, int max_views, int64_t per_view) {
   core::require(!scene.train.empty(), scene.root, "no training views to sample spectra from");
   const int count = std::min<int>(max_views, int(scene.train.size()));
-  std::vector<torch::Tensor> samples;
+  std::vector<torch::Tensor> samples, sigmas;
   for (int i = 0; i < count; ++i) {
     const int view = scene.train[size_t(int64_t(i) * int64_t(scene.train.size()) / count)];
-    const torch::Tensor pixels = scene.image(view).reshape({-1, scene.bands()});
+    const torch::Tensor image = scene.image(view);
+    if (image.size(1) >= 2) sigmas.push_back(core::band_noise_sigma(image));
+    const torch::Tensor pixels = image.reshape({-1, scene.bands()});
     const int64_t step = std::max<int64_t>(1, (pixels.size(0) + per_view - 1) / per_view);
     samples.push_back(pixels.slice(0, 0, pixels.size(0), step).clone());
   }
-  return torch::cat(samples);
+  SpectraSample out;
+  out.spectra = torch::cat(samples);
+  out.noise_sigma = sigmas.empty() ? torch::zeros({scene.bands()}, torch::kFloat64)
+                                   : std::get<0>(torch::stack(sigmas).median(0));
+  out.views = count;
+  return out;
 }
 
 }  // namespace ddhgs::io

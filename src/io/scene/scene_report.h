@@ -42,7 +42,12 @@ SceneReport inspect_scene(const Scene& scene, int sample_reads = 3);
 
 // Pixel spectra for a PCA of the scene (core/spectral_pca.h): up to
 // `max_views` training views spread along the split, every k-th pixel so
-// that each gives at most `per_view` samples. [M, N] float32, as loaded.
-torch::Tensor sample_spectra(const Scene& scene, int max_views = 8, int64_t per_view = 20000);
+// that each gives at most `per_view` samples.
+struct SpectraSample {
+  torch::Tensor spectra;      // [M, N] float32, as loaded
+  torch::Tensor noise_sigma;  // [N] float64, the median over the views of core::band_noise_sigma
+  int views = 0;
+};
+SpectraSample sample_spectra(const Scene& scene, int max_views = 8, int64_t per_view = 20000);
 
 }  // namespace ddhgs::io
