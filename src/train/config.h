@@ -32,11 +32,10 @@ void validate_config(const nlohmann::json& config, const std::string& source);
 
 // core::Error naming source and the key when a number is outside what the
 // key allows (train/config_values.cpp): iterations >= 1, sh_degree 0..3,
-// learning rates >= 0, divisors > 0, ... Part of validate_config.
+// learning rates >= 0, divisors > 0, ...; and the rules across keys: some
+// loss, a band range that keeps a band, a rising noise schedule. Part of
+// validate_config.
 void check_config_values(const nlohmann::json& config, const std::string& source);
-// Rules across keys (check_config_values runs them too): some loss fits the
-// views, the band range keeps a band, the noise schedule rises.
-void check_config_relations(const nlohmann::json& config, const std::string& source);
 // Whether a numeric key has a range (every one should: a test checks).
 bool has_range(const std::string& key);
 // The same for one key (dotted path) about to be set to value.

@@ -3,7 +3,6 @@
 // of training on it (a zero divisor made every SH coefficient infinite) or
 // failing only when the run is written out (an SH degree the PLY cannot hold).
 #include <cmath>
-#include <limits>
 
 #include "core/error.h"
 #include "train/config.h"
@@ -13,8 +12,6 @@ namespace ddhgs::train {
 namespace {
 
 using nlohmann::json;
-
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 struct Range {
   const char* key;  // dotted path
@@ -151,14 +148,8 @@ void check_range(const Range& r, const json& value, const std::string& source) {
                                   ", expected " + wanted(r));
 }
 
-}  // namespace
-
-void check_config_values(const json& config, const std::string& source) {
-  for (const Range& r : kRanges)
-    if (const json* value = find_key(config, r.key)) check_range(r, *value, source);
-  check_config_relations(config, source);
-}
-
+// Rules across keys: some loss fits the views, the band range keeps a band,
+// the noise schedule rises.
 void check_config_relations(const json& config, const std::string& source) {
   auto number = [&](const char* key) {
     const json* v = find_key(config, key);
@@ -173,6 +164,14 @@ void check_config_relations(const json& config, const std::string& source) {
                       "key 'data.band_min_nm' is above 'data.band_max_nm': no band is kept");
   if (number("diffusion.beta_start") > number("diffusion.beta_end"))
     throw core::Error(source, "key 'diffusion.beta_start' is above 'diffusion.beta_end'");
+}
+
+}  // namespace
+
+void check_config_values(const json& config, const std::string& source) {
+  for (const Range& r : kRanges)
+    if (const json* value = find_key(config, r.key)) check_range(r, *value, source);
+  check_config_relations(config, source);
 }
 
 bool has_range(const std::string& key) {

@@ -32,10 +32,7 @@ DataConfig parse_data(const json& d, const std::string& source) {
   o.band_max_nm = read<double>(d, "data", "band_max_nm", source);
   o.bin = read<int>(d, "data", "bin", source);
   o.cache_mb = read<size_t>(d, "data", "cache_mb", source);
-  core::require(o.downscale >= 1, source + ": data.downscale must be >= 1");
-  core::require(o.bin >= 1, source + ": data.bin must be >= 1");
-  core::require(o.band_min_nm <= o.band_max_nm, source + ": data.band_min_nm > data.band_max_nm");
-  return c;
+  return c;  // ranges and the band range: validate_config (config_values.cpp)
 }
 
 ModelConfig parse_model(const json& m, const std::string& source) {
@@ -142,14 +139,8 @@ DiffusionTermOptions parse_diffusion(const json& d, double weight, uint64_t seed
   o.sampler.eta = read<double>(d, s, "eta", source);
   o.sampler.samples = read<int64_t>(d, s, "sampler_samples", source);
   o.sampler.seed = seed;
-  core::require(o.weight >= 0, source + ": loss.diffusion must be >= 0");
-  core::require(o.warmup >= 0, source + ": diffusion.warmup must be >= 0");
-  core::require(o.lr > 0, source + ": diffusion.lr must be > 0");
-  core::require(o.condition_noise >= 0, source + ": diffusion.condition_noise must be >= 0");
-  core::require(o.finetune_steps >= 0, source + ": diffusion.finetune_steps must be >= 0");
-  core::require(o.finetune_batch >= 1, source + ": diffusion.finetune_batch must be >= 1");
-  core::require(o.finetune_cache_mb >= 0, source + ": diffusion.finetune_cache_mb must be >= 0");
-  core::require(o.schedule_steps >= 1, source + ": diffusion.steps must be >= 1");
+  // Each key's range was checked by validate_config (config_values.cpp); what
+  // is left is the sampler against the schedule it samples.
   o.sampler.validate(o.schedule_steps, source + ": diffusion");
   return o;
 }
