@@ -6,6 +6,16 @@
 
 namespace ddhgs::core {
 
+namespace {
+
+// Covariance about the mean of float64 samples x [M, N]: [N, N].
+torch::Tensor covariance(const torch::Tensor& x) {
+  const torch::Tensor centred = x - x.mean(0);
+  return centred.t().matmul(centred) / double(x.size(0));
+}
+
+}  // namespace
+
 double SpectralPca::kept(int64_t k) const {
   double sum = 0;
   for (int64_t i = 0; i < std::min<int64_t>(k, bands()); ++i) sum += energy[size_t(i)];
@@ -38,9 +48,7 @@ SpectralPca spectral_pca(const torch::Tensor& spectra) {
   const torch::Tensor x = spectra.to(torch::kFloat64);
   SpectralPca pca;
   pca.mean = x.mean(0);
-  const torch::Tensor centred = x - pca.mean;
-  const torch::Tensor covariance = centred.t().matmul(centred) / double(x.size(0));
-  auto [values, vectors] = torch::linalg::eigh(covariance, "L");  // ascending
+  auto [values, vectors] = torch::linalg::eigh(covariance(x), "L");  // ascending
   values = values.flip(0).clamp_min(0);
   pca.basis = vectors.flip(1).contiguous();
   // A deterministic sign: each component's largest entry is positive.
@@ -71,9 +79,7 @@ int64_t whitened_signal_rank(const torch::Tensor& spectra, const torch::Tensor& 
   const double top = sigma.max().item<double>();
   if (!(top > 0)) return spectral_pca(spectra).rank_for(0.999);  // no noise to whiten by
   const torch::Tensor x = spectra.to(torch::kFloat64) / sigma.clamp_min(1e-6 * top);
-  const torch::Tensor centred = x - x.mean(0);
-  const torch::Tensor values =
-      torch::linalg::eigvalsh(centred.t().matmul(centred) / double(x.size(0)), "L");
+  const torch::Tensor values = torch::linalg::eigvalsh(covariance(x), "L");
   return (values > kWhitenedThreshold).sum().item<int64_t>();
 }
 

@@ -133,9 +133,14 @@ SpectraSample sample_spectra(const Scene& scene, int max_views, int64_t per_view
   for (int i = 0; i < count; ++i) {
     const int view = scene.train[size_t(int64_t(i) * int64_t(scene.train.size()) / count)];
     const torch::Tensor image = scene.image(view);
-    if (image.size(1) >= 2) sigmas.push_back(core::band_noise_sigma(image));
+    const int64_t step =
+        std::max<int64_t>(1, (image.size(0) * image.size(1) + per_view - 1) / per_view);
+    // The noise from whole rows (differences run along them), one row in
+    // `step`: about per_view pixels, as the spectra, not the whole view in
+    // float64.
+    if (image.size(1) >= 2)
+      sigmas.push_back(core::band_noise_sigma(image.slice(0, 0, image.size(0), step)));
     const torch::Tensor pixels = image.reshape({-1, scene.bands()});
-    const int64_t step = std::max<int64_t>(1, (pixels.size(0) + per_view - 1) / per_view);
     samples.push_back(pixels.slice(0, 0, pixels.size(0), step).clone());
   }
   SpectraSample out;

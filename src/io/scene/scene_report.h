@@ -46,6 +46,7 @@ SceneReport inspect_scene(const Scene& scene, int sample_reads = 3);
 struct SpectraSample {
   torch::Tensor spectra;      // [M, N] float32, as loaded
   torch::Tensor noise_sigma;  // [N] float64, the median over the views of core::band_noise_sigma
+                              // of every k-th row
   int views = 0;
 };
 SpectraSample sample_spectra(const Scene& scene, int max_views = 8, int64_t per_view = 20000);
