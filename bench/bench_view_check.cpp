@@ -3,10 +3,13 @@
 // views (smooth spectra with noise, as a capture) and times
 // train::check_scene_before_training on one thread and on all of them.
 // Run: build/bench/bench_view_check [VIEWS=16] [WIDTH=640] [HEIGHT=512] [BANDS=141]
+#include <unistd.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <stdexcept>
 #include <vector>
 
 #include "core/camera.h"
@@ -21,9 +24,10 @@ namespace fs = std::filesystem;
 using namespace ddhgs;
 
 fs::path write_scene(int views, int width, int height, int bands) {
-  const fs::path root = fs::temp_directory_path() / "ddhgs-bench-view-check";
-  fs::remove_all(root);
-  fs::create_directories(root / "cubes");
+  // A folder of this process's own: nothing else is ever removed.
+  const fs::path root =
+      fs::temp_directory_path() / ("ddhgs-bench-view-check-" + std::to_string(::getpid()));
+  if (!fs::create_directories(root / "cubes")) throw std::runtime_error(root.string() + " exists");
   io::TransformsFile file;
   for (int b = 0; b < bands; ++b) file.wavelengths_nm.push_back(400 + 5.0 * b);
   torch::manual_seed(0);

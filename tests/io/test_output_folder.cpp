@@ -317,10 +317,16 @@ TEST(OutputFolder, StaleTemporariesAreRemovedOnlyWhereTheyAreProvablyOurs) {
   // Stale files are removed by the next write into the same folder (a fresh
   // process scans each folder once; this test calls the scan directly).
   remove_stale_temporaries(dir);
-  EXPECT_EQ(listing(dir),
-            (std::vector<std::string>{".ckpt.pt.tmp-" + alive + "-0", ".ckpt.pt.tmp-" + dead + "-0",
-                                      ".notes.tmp-" + dead, ".notes.tmp-999999-1",
-                                      ".photos.tmp-" + dead, ".report.tmp-" + dead, "keep.txt"}));
+  // listing() is sorted by name; the pids decide where the two .ckpt names fall.
+  std::vector<std::string> left{".ckpt.pt.tmp-" + alive + "-0",
+                                ".ckpt.pt.tmp-" + dead + "-0",
+                                ".notes.tmp-" + dead,
+                                ".notes.tmp-999999-1",
+                                ".photos.tmp-" + dead,
+                                ".report.tmp-" + dead,
+                                "keep.txt"};
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(listing(dir), left);
   // Inside an output of ddhgs's own, its file temporaries go.
   const fs::path run = dir / "run";
   fs::create_directories(run);
