@@ -13,6 +13,7 @@
 #include "io/image/image.h"
 #include "io/ply/ply.h"
 #include "io/transforms/camera_json.h"
+#include "model/gaussians.h"
 #include "render/rasterize.h"
 
 namespace ddhgs::app {
@@ -82,12 +83,9 @@ int run(const RenderPlyArgs& args) {
   const torch::Tensor background = parse_background(args.background, N);
 
   torch::NoGradGuard no_grad;
-  const core::Vec3 c = camera.center();
-  const auto center = torch::tensor({float(c.x), float(c.y), float(c.z)});
-  const auto colors = render::eval_sh(scene.sh_dc, scene.sh_rest, scene.means, center, degree);
-  const auto output =
-      render::rasterize(scene.means, scene.log_scales, scene.quats, scene.logit_opacities, colors,
-                        render::RenderCamera::from(camera), background);
+  model::Gaussians gaussians = model::from_ply(scene);
+  gaussians.active_sh_degree = degree;
+  const auto output = model::render_gaussians(gaussians, camera, background);
   // The preview is made before anything is written, so a failure leaves no files.
   torch::Tensor preview;
   if (!args.preview.empty()) preview = preview_picture(output.image, scene.wavelengths_nm);

@@ -72,7 +72,7 @@ json rgb_weights(const std::vector<double>& wavelengths_nm, int64_t bands) {
 }  // namespace
 
 torch::Tensor band_values(const model::Gaussians& gaussians) {
-  return (gaussians.sh_dc.detach().to(torch::kFloat64) * model::kShC0 + 0.5).clamp(0, 1);
+  return gaussians.colour.spectra(gaussians.sh_dc.detach() * model::kShC0).clamp(0, 1);
 }
 
 torch::Tensor SpectralBasis::reconstruct() const {

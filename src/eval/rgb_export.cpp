@@ -138,12 +138,16 @@ io::GaussianPly map_colours(const io::GaussianPly& model, const ColourMapping& m
   const torch::Tensor& L = mapping.linear;  // [3, N]
   core::require(L.dim() == 2 && L.size(0) == 3 && L.size(1) == N,
                 "colour mapping: expected a [3, " + std::to_string(N) + "] map");
-  const torch::Tensor dc = model.sh_dc.to(torch::kFloat64);  // [G, N]
+  const torch::Tensor dc = model.sh_dc.to(torch::kFloat64);  // [G, C]
+  // The colour model's channels to bands, then to the three colours.
+  const model::ColourModel colour_model{model.basis, model.mean, {}};
+  const auto [A, offset] = colour_model.affine(N);  // [N, C], [N]
+  const torch::Tensor LA = L.matmul(A);             // [3, C]
   // Each channel's DC value, offsets included: [G, 3].
-  torch::Tensor base = (dc * model::kShC0 + 0.5).matmul(L.t());
+  torch::Tensor base = (dc * model::kShC0).matmul(LA.t()) + L.matmul(offset);
   torch::Tensor rest;  // [G, 3, K]: view-dependent coefficients through the map
   if (model.sh_rest.defined() && model.sh_rest.size(2) > 0)
-    rest = torch::einsum("jn,gnk->gjk", {L, model.sh_rest.to(torch::kFloat64)});
+    rest = torch::einsum("jc,gck->gjk", {LA, model.sh_rest.to(torch::kFloat64)});
 
   torch::Tensor colour = base, slope = torch::ones_like(base);
   if (mapping.curve == ColourMapping::Curve::Srgb) {

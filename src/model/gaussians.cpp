@@ -41,7 +41,7 @@ const std::vector<std::string>& Gaussians::tensor_names() {
 }
 
 io::GaussianPly to_ply(const Gaussians& gaussians, const std::vector<double>& wavelengths_nm,
-                       const torch::Tensor& band_offsets) {
+                       const torch::Tensor& encoder_output) {
   io::GaussianPly ply;
   ply.means = detached_copy(gaussians.means);
   ply.log_scales = detached_copy(gaussians.log_scales);
@@ -50,8 +50,12 @@ io::GaussianPly to_ply(const Gaussians& gaussians, const std::vector<double>& wa
   ply.sh_dc = detached_copy(gaussians.sh_dc);
   ply.sh_rest = gaussians.sh_rest.defined()
                     ? detached_copy(gaussians.sh_rest)
-                    : torch::zeros({gaussians.size(), gaussians.bands(), 0});
+                    : torch::zeros({gaussians.size(), gaussians.channels(), 0});
   ply.wavelengths_nm = wavelengths_nm;
+  const ColourModel colour = gaussians.colour.with_encoder(encoder_output).detached();
+  ply.basis = colour.basis;
+  ply.mean = colour.mean;
+  const torch::Tensor band_offsets = gaussians.colour.sh_offsets(encoder_output);
   if (band_offsets.defined()) {
     const int64_t k = ply.sh_rest.size(2);
     core::require(band_offsets.dim() == 2 && band_offsets.size(0) == gaussians.bands() &&
@@ -71,14 +75,18 @@ Gaussians from_ply(const io::GaussianPly& ply) {
   g.quats = detached_copy(ply.quats);
   g.logit_opacities = detached_copy(ply.logit_opacities);
   g.sh_dc = detached_copy(ply.sh_dc);
-  g.sh_rest =
-      ply.sh_rest.defined() ? detached_copy(ply.sh_rest) : torch::zeros({g.size(), g.bands(), 0});
+  g.sh_rest = ply.sh_rest.defined() ? detached_copy(ply.sh_rest)
+                                    : torch::zeros({g.size(), g.channels(), 0});
+  if (ply.basis.defined()) {
+    g.colour.basis = detached_copy(ply.basis);
+    g.colour.mean = detached_copy(ply.mean);
+  }
   g.active_sh_degree = g.max_sh_degree();
   return g;
 }
 
-int64_t training_bytes_per_gaussian(int64_t bands, int sh_degree) {
-  const int64_t floats = 3 + 3 + 4 + 1 + bands * (sh_degree + 1) * (sh_degree + 1);
+int64_t training_bytes_per_gaussian(int64_t channels, int sh_degree) {
+  const int64_t floats = 3 + 3 + 4 + 1 + channels * (sh_degree + 1) * (sh_degree + 1);
   return floats * int64_t(sizeof(float)) * 4;
 }
 

@@ -1,4 +1,5 @@
-// The N-band Gaussian model: its parameters, how it renders, and its PLY form.
+// The N-band Gaussian model: its parameters, its colour model, how it
+// renders, and its PLY form.
 #pragma once
 #include <torch/torch.h>
 
@@ -6,6 +7,7 @@
 
 #include "core/camera.h"
 #include "io/ply/ply.h"
+#include "model/colour_model.h"
 #include "render/rasterize.h"
 
 namespace ddhgs::model {
@@ -20,12 +22,16 @@ struct Gaussians {
   torch::Tensor log_scales;       // [G, 3] log of the standard deviations
   torch::Tensor quats;            // [G, 4] (w, x, y, z), unnormalised
   torch::Tensor logit_opacities;  // [G, 1]
-  torch::Tensor sh_dc;            // [G, N]
-  torch::Tensor sh_rest;          // [G, N, K], K = (max degree + 1)^2 - 1
+  torch::Tensor sh_dc;            // [G, C], C = colour.channels(N)
+  torch::Tensor sh_rest;          // [G, C, K], K = (max degree + 1)^2 - 1
   int active_sh_degree = 0;       // raised during training up to max_sh_degree()
+  // Per band or latent (model/colour_model.h). Shared by every Gaussian: not
+  // one of tensors(); training holds its basis and mean as a module.
+  ColourModel colour;
 
   int64_t size() const { return means.defined() ? means.size(0) : 0; }
-  int64_t bands() const { return sh_dc.size(1); }
+  int64_t channels() const { return sh_dc.size(1); }                                     // C
+  int64_t bands() const { return colour.latent() ? colour.basis.size(0) : channels(); }  // N
   int max_sh_degree() const;
 
   // The six parameter tensors in a fixed order (means first), and their names,
@@ -35,25 +41,32 @@ struct Gaussians {
   static const std::vector<std::string>& tensor_names();
 };
 
-// SH value at the camera centre (per-band colours) followed by rasterisation.
-// Differentiable in every parameter; see render::rasterize for the sink.
-// sh_rest_sink: see render::eval_sh (training hands the SH rest gradient to Adam).
+// SH value at the camera centre (the C channels' values), rasterisation of
+// the C channels, then the colour model's decode to bands: image [H, W, M]
+// (M = N unless the colour model has an output map). Differentiable in every
+// parameter, the colour model's basis and mean included; see render::rasterize
+// for the sink. encoder_output: the wavelength encoder's [N, width]
+// (ColourModel::encoder_width). sh_rest_sink: see render::eval_sh (training
+// hands the SH rest gradient to Adam).
 render::RenderOutput render_gaussians(const Gaussians& gaussians, const core::Camera& camera,
                                       const torch::Tensor& background,              // [N]
-                                      const torch::Tensor& band_offsets = {},       // [N, K+1]
+                                      const torch::Tensor& encoder_output = {},     // [N, width]
                                       const torch::Tensor& means2d_grad_sink = {},  // [G, 2]
                                       const render::ShRestSink& sh_rest_sink = {});
 
 // Detached float32 copies; sh_rest keeps all K coefficients of the max degree.
-// band_offsets (the wavelength encoder's [N, K+1]) are added to every
-// Gaussian's coefficients, so the PLY renders as the model did with them.
+// The wavelength encoder's output is baked in (added to every Gaussian's
+// coefficients per band, or to a latent model's basis and mean), so the PLY
+// renders as the model did with it. A latent model's basis and mean go with
+// it.
 io::GaussianPly to_ply(const Gaussians& gaussians, const std::vector<double>& wavelengths_nm,
-                       const torch::Tensor& band_offsets = {});
+                       const torch::Tensor& encoder_output = {});
 // active_sh_degree becomes the file's degree (a trained model renders at full degree).
 Gaussians from_ply(const io::GaussianPly& ply);
 
 // Bytes one Gaussian costs while training with Adam: parameter, gradient and
-// two moments, float32: 4 * 4 * (11 + N * (K + 1)).
-int64_t training_bytes_per_gaussian(int64_t bands, int sh_degree);
+// two moments, float32: 4 * 4 * (11 + C * (degree + 1)^2), C the channels
+// (N per band, K latent).
+int64_t training_bytes_per_gaussian(int64_t channels, int sh_degree);
 
 }  // namespace ddhgs::model

@@ -6,7 +6,7 @@ namespace ddhgs::model {
 
 render::RenderOutput render_gaussians(const Gaussians& gaussians, const core::Camera& camera,
                                       const torch::Tensor& background,
-                                      const torch::Tensor& band_offsets,
+                                      const torch::Tensor& encoder_output,
                                       const torch::Tensor& means2d_grad_sink,
                                       const render::ShRestSink& sh_rest_sink) {
   core::Vec3 c = camera.center();
@@ -15,12 +15,16 @@ render::RenderOutput render_gaussians(const Gaussians& gaussians, const core::Ca
   torch::Tensor rest = gaussians.sh_rest.defined() && gaussians.sh_rest.size(2) > 0
                            ? gaussians.sh_rest
                            : torch::Tensor();
+  const ColourModel colour = gaussians.colour.with_encoder(encoder_output);
   torch::Tensor colors =
       render::eval_sh(gaussians.sh_dc, rest, gaussians.means, center, gaussians.active_sh_degree,
-                      band_offsets, rest.defined() ? sh_rest_sink : render::ShRestSink());
-  return render::rasterize(gaussians.means, gaussians.log_scales, gaussians.quats,
-                           gaussians.logit_opacities, colors, render::RenderCamera::from(camera),
-                           background, means2d_grad_sink);
+                      colour.sh_offsets(encoder_output),
+                      rest.defined() ? sh_rest_sink : render::ShRestSink(), colour.linear_sh());
+  render::RenderOutput out = render::rasterize(
+      gaussians.means, gaussians.log_scales, gaussians.quats, gaussians.logit_opacities, colors,
+      render::RenderCamera::from(camera), colour.blend_background(background), means2d_grad_sink);
+  out.image = colour.decode(out.image, out.alpha, background);
+  return out;
 }
 
 }  // namespace ddhgs::model

@@ -57,6 +57,9 @@ RenderOutput rasterize(const torch::Tensor& means,            // [G, 3]
 // per block, possibly from several threads at once, after the block's other
 // gradients (which read sh_rest) are computed; it may modify those rows of
 // sh_rest. Needs a contiguous float32 sh_rest.
+//
+// linear (a latent colour model's channels, model/colour_model.h): the value
+// is sum_k c[g, n, k] Y_k(dir_g), without the +0.5 and without the clamp.
 using ShRestSink = std::function<void(int64_t first, int64_t count,
                                       const float* grad)>;  // grad: [count, N, K-1]
 torch::Tensor eval_sh(const torch::Tensor& sh_dc,           // [G, N]
@@ -64,6 +67,6 @@ torch::Tensor eval_sh(const torch::Tensor& sh_dc,           // [G, N]
                       const torch::Tensor& means,           // [G, 3]
                       const torch::Tensor& camera_center,   // [3]
                       int degree, const torch::Tensor& band_offsets = {},  // [N, K] or undefined
-                      const ShRestSink& rest_sink = {});
+                      const ShRestSink& rest_sink = {}, bool linear = false);
 
 }  // namespace ddhgs::render

@@ -22,6 +22,7 @@ struct ShShapes {
   int64_t G = 0, N = 0;
   int64_t rest_stride = 0;    // stored rest coefficients per band (>= K - 1)
   int64_t offset_stride = 0;  // stored offsets per band (>= K), 0 without offsets
+  bool linear = false;        // latent channels: no +0.5 and no clamp at 0
 };
 
 // Pointers into contiguous inputs of one dtype.
@@ -45,10 +46,11 @@ inline T view_direction(const T* mean, const T* center, T dir[3]) {
   return length;
 }
 
-// sum_k c[n, k] Y[k] + 0.5 for one Gaussian and band, offsets included.
+// sum_k c[n, k] Y[k] + 0.5 (+ 0 when linear) for one Gaussian and band,
+// offsets included.
 template <int K, typename T>
 inline T band_value(const ShInputs<T>& in, const ShShapes& s, int64_t g, int64_t n, const T* Y) {
-  T v = in.dc[g * s.N + n] * Y[0] + T(0.5);
+  T v = in.dc[g * s.N + n] * Y[0] + (s.linear ? T(0) : T(0.5));
   if constexpr (K > 1) {
     const T* rest = in.rest + (g * s.N + n) * s.rest_stride;
     for (int k = 1; k < K; ++k) v += rest[k - 1] * Y[k];
@@ -68,8 +70,11 @@ void forward_kernel(const ShInputs<T>& in, const ShShapes& s, T* out) {
       T dir[3], Y[16];
       view_direction(in.means + 3 * g, in.center, dir);
       sh_basis<Degree>(dir[0], dir[1], dir[2], Y);
-      for (int64_t n = 0; n < s.N; ++n)
-        out[g * s.N + n] = std::max(band_value<K>(in, s, g, n, Y), T(0));
+      if (s.linear)
+        for (int64_t n = 0; n < s.N; ++n) out[g * s.N + n] = band_value<K>(in, s, g, n, Y);
+      else
+        for (int64_t n = 0; n < s.N; ++n)
+          out[g * s.N + n] = std::max(band_value<K>(in, s, g, n, Y), T(0));
     }
   });
 }
@@ -107,7 +112,7 @@ void backward_gaussian(const ShInputs<T>& in, const ShShapes& s, const T* grad_o
   T dL_dY[16] = {};
   for (int64_t n = 0; n < s.N; ++n) {
     // Matches clamp_min's convention: the gradient passes at exactly 0.
-    const bool clamped = band_value<K>(in, s, g, n, Y) < T(0);
+    const bool clamped = !s.linear && band_value<K>(in, s, g, n, Y) < T(0);
     const T gv = clamped ? T(0) : grad_out[g * s.N + n];
     if (gr.dc) gr.dc[g * s.N + n] = gv * Y[0];
     if (rest_grad) {
@@ -188,9 +193,9 @@ ShInputs<T> inputs_of(const torch::Tensor& dc, const torch::Tensor& rest,
           center.data_ptr<T>(), offsets.numel() ? offsets.data_ptr<T>() : nullptr};
 }
 
-ShShapes shapes_of(const torch::Tensor& dc, const torch::Tensor& rest,
-                   const torch::Tensor& offsets) {
-  return {dc.size(0), dc.size(1), rest.size(2), offsets.numel() ? offsets.size(1) : 0};
+ShShapes shapes_of(const torch::Tensor& dc, const torch::Tensor& rest, const torch::Tensor& offsets,
+                   bool linear) {
+  return {dc.size(0), dc.size(1), rest.size(2), offsets.numel() ? offsets.size(1) : 0, linear};
 }
 
 // Carries a rest sink from the forward to the backward in saved_data.
@@ -206,16 +211,17 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
   static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& dc,
                                const torch::Tensor& rest, const torch::Tensor& means,
                                const torch::Tensor& center, const torch::Tensor& offsets,
-                               int degree, const ShRestSink& rest_sink) {
+                               int degree, const ShRestSink& rest_sink, bool linear) {
     core::StageScope stage("sh forward");
     ctx->save_for_backward({dc, rest, means, center, offsets});
     ctx->saved_data["degree"] = degree;
+    ctx->saved_data["linear"] = linear;
     if (rest_sink)
       ctx->saved_data["rest_sink"] =
           c10::IValue::make_capsule(c10::make_intrusive<SinkHolder>(rest_sink));
     // Pooled: the colours and the SH gradients are allocated every iteration.
     auto out = core::pooled_empty(dc.sizes(), dc.scalar_type());
-    const ShShapes shapes = shapes_of(dc, rest, offsets);
+    const ShShapes shapes = shapes_of(dc, rest, offsets, linear);
     AT_DISPATCH_FLOATING_TYPES(dc.scalar_type(), "eval_sh_forward", [&] {
       const auto in = inputs_of<scalar_t>(dc, rest, means, center, offsets);
       dispatch_degree(degree, [&](auto deg) {
@@ -234,7 +240,7 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
     const int degree = int(ctx->saved_data["degree"].toInt());
     const int64_t K = sh_coeff_count(degree);
     const auto grad_out = grad_outputs[0].contiguous();
-    const ShShapes shapes = shapes_of(dc, rest, offsets);
+    const ShShapes shapes = shapes_of(dc, rest, offsets, ctx->saved_data["linear"].toBool());
     const bool want_means = ctx->needs_input_grad(2) || ctx->needs_input_grad(3);
     const bool want_offsets = ctx->needs_input_grad(4) && offsets.numel() > 0;
     torch::Tensor d_dc = ctx->needs_input_grad(0) ? core::pooled_empty(dc.sizes(), dc.scalar_type())
@@ -271,7 +277,8 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
     torch::Tensor d_center;
     if (ctx->needs_input_grad(3)) d_center = -d_means.sum(0);
     if (!ctx->needs_input_grad(2)) d_means = torch::Tensor();
-    return {d_dc, d_rest, d_means, d_center, d_offsets, torch::Tensor(), torch::Tensor()};
+    return {d_dc,      d_rest,          d_means,         d_center,
+            d_offsets, torch::Tensor(), torch::Tensor(), torch::Tensor()};
   }
 };
 
@@ -317,7 +324,7 @@ void check_shapes(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
 
 torch::Tensor eval_sh(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
                       const torch::Tensor& means, const torch::Tensor& camera_center, int degree,
-                      const torch::Tensor& band_offsets, const ShRestSink& rest_sink) {
+                      const torch::Tensor& band_offsets, const ShRestSink& rest_sink, bool linear) {
   check_shapes(sh_dc, sh_rest, means, camera_center, degree, band_offsets);
   core::require(!rest_sink || (sh_rest.defined() && sh_rest.scalar_type() == torch::kFloat32 &&
                                sh_rest.is_contiguous()),
@@ -329,7 +336,8 @@ torch::Tensor eval_sh(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
   auto offsets =
       band_offsets.defined() ? band_offsets.contiguous() : torch::zeros({N, 0}, sh_dc.options());
   return EvalShFunction::apply(sh_dc.contiguous(), rest, means.contiguous(),
-                               camera_center.reshape({3}).contiguous(), offsets, degree, rest_sink);
+                               camera_center.reshape({3}).contiguous(), offsets, degree, rest_sink,
+                               linear);
 }
 
 }  // namespace ddhgs::render

@@ -26,7 +26,7 @@ torch::Tensor sh_basis_reference(const torch::Tensor& dirs, int degree) {
 
 torch::Tensor eval_sh_reference(const torch::Tensor& sh_dc, const torch::Tensor& sh_rest,
                                 const torch::Tensor& means, const torch::Tensor& camera_center,
-                                int degree, const torch::Tensor& band_offsets) {
+                                int degree, const torch::Tensor& band_offsets, bool linear) {
   const int64_t K = sh_coeff_count(degree);
   auto offsets = means - camera_center.reshape({1, 3});
   auto dirs = offsets / offsets.norm(2, 1, true);
@@ -34,8 +34,8 @@ torch::Tensor eval_sh_reference(const torch::Tensor& sh_dc, const torch::Tensor&
   auto coeffs = sh_dc.unsqueeze(2);               // [G, N, K]
   if (K > 1) coeffs = torch::cat({coeffs, sh_rest.slice(2, 0, K - 1)}, 2);
   if (band_offsets.defined()) coeffs = coeffs + band_offsets.slice(1, 0, K).unsqueeze(0);
-  auto value = (coeffs * basis.unsqueeze(1)).sum(2) + 0.5;
-  return value.clamp_min(0.0);
+  auto value = (coeffs * basis.unsqueeze(1)).sum(2);
+  return linear ? value : (value + 0.5).clamp_min(0.0);
 }
 
 }  // namespace ddhgs::render

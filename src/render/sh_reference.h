@@ -16,6 +16,7 @@ torch::Tensor eval_sh_reference(const torch::Tensor& sh_dc,          // [G, N]
                                 const torch::Tensor& means,          // [G, 3]
                                 const torch::Tensor& camera_center,  // [3]
                                 int degree,
-                                const torch::Tensor& band_offsets = {});  // [N, K] or undefined
+                                const torch::Tensor& band_offsets = {},  // [N, K] or undefined
+                                bool linear = false);
 
 }  // namespace ddhgs::render

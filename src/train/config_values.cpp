@@ -41,6 +41,7 @@ constexpr Range kRanges[] = {
     {"data.bin", 1, 100000, false, true},
     {"data.cache_mb", 0, kMaxMiB, false, true},
     {"model.sh_degree", 0, 3, false, true},
+    {"model.spectral_rank", -1, 4096, false, true},
     // Fractions of the run for intervals may pass 1 (decay over a longer run
     // than this one, never reset): only their sign is nonsense.
     {"model.sh_degree_every_fraction", 0, 1e6, false},
@@ -60,6 +61,7 @@ constexpr Range kRanges[] = {
     {"optim.rotation_lr", 0, kMaxRate, false},
     {"optim.adam_eps", 0, 1, true},
     {"optim.background_lr", 0, kMaxRate, false},
+    {"optim.basis_lr", 0, kMaxRate, false},
     {"loss.l1", 0, kMaxWeight, false},
     {"loss.dssim", 0, kMaxWeight, false},
     {"loss.spectral", 0, kMaxWeight, false},

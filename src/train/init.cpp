@@ -2,10 +2,14 @@
 
 #include <ATen/CPUGeneratorImpl.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/spectral_pca.h"
+#include "io/scene/scene_report.h"
 #include "model/knn.h"
 
 namespace ddhgs::train {
@@ -147,7 +151,8 @@ std::pair<torch::Tensor, torch::Tensor> colours_from_views(const io::Scene& scen
   return {colours, seen};
 }
 
-model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions& options) {
+model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions& options,
+                                      const model::ColourModel& colour) {
   const int64_t n = scene.bands();
   core::require(n > 0, scene.root, "the scene has no bands");
   auto generator = at::make_generator<at::CPUGeneratorImpl>(options.seed);
@@ -200,12 +205,46 @@ model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions&
   gaussians.quats.select(1, 0).fill_(1.0f);
   const double logit = std::log(options.opacity / (1 - options.opacity));
   gaussians.logit_opacities = torch::full({g, 1}, float(logit));
-  gaussians.sh_dc = ((values.clamp(0, 1) - 0.5f) / float(model::kShC0)).contiguous();
+  gaussians.colour = colour;
+  gaussians.sh_dc = colour.sh_dc_for(values.clamp(0, 1)).to(torch::kFloat32).contiguous();
   const int k = (options.sh_degree + 1) * (options.sh_degree + 1) - 1;
-  gaussians.sh_rest = torch::zeros({g, n, k});
+  gaussians.sh_rest = torch::zeros({g, colour.channels(n), k});
   gaussians.active_sh_degree = 0;
   for (torch::Tensor* t : gaussians.tensors()) t->requires_grad_(true);
   return gaussians;
+}
+
+}  // namespace ddhgs::train
+
+namespace ddhgs::train {
+
+namespace {
+std::string percent(double share) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.2f", 100 * share);
+  return text;
+}
+}  // namespace
+
+model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank) {
+  if (spectral_rank == 0) return {};
+  const int64_t n = scene.bands();
+  if (spectral_rank > n)
+    throw core::Error(scene.root, "model.spectral_rank " + std::to_string(spectral_rank) +
+                                      " is above the scene's " + std::to_string(n) +
+                                      " bands (0 for one SH set per band)");
+  const io::SpectraSample sample = io::sample_spectra(scene);
+  const core::SpectralPca pca = core::spectral_pca(sample.spectra);
+  int64_t k = spectral_rank;
+  if (k < 0) {
+    k = std::clamp<int64_t>(core::whitened_signal_rank(sample.spectra, sample.noise_sigma), 1, n);
+  }
+  core::log_info("colour model: " + std::to_string(k) + " latent channels for " +
+                 std::to_string(n) + " bands (a basis from the principal components of " +
+                 std::to_string(sample.spectra.size(0)) + " pixels of " +
+                 std::to_string(sample.views) + " training views, holding " + percent(pca.kept(k)) +
+                 " % of their variance)");
+  return model::latent_from_pca(pca, k);
 }
 
 }  // namespace ddhgs::train

@@ -29,8 +29,16 @@ struct InitOptions {
 
 // Random points when random is set or the scene has none; otherwise the
 // scene's points plus extra_random_per_pixel x (pixels of a view) random
-// ones (grey).
-model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions& options);
+// ones (grey). Their coefficients are the colour model's (it becomes theirs).
+model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions& options,
+                                      const model::ColourModel& colour = {});
+
+// The colour model model.spectral_rank asks for: per band for 0; else a
+// latent one of that rank (-1: the scene's whitened signal rank,
+// core::whitened_signal_rank) from the PCA of up to 8 training views'
+// pixels (io::sample_spectra). Throws naming the scene when the rank is
+// above its band count.
+model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank);
 
 // 3DGS's scene extent: 1.1 x the largest distance of a camera centre from
 // their mean (scene units). Scales position learning rates and densification.

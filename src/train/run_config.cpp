@@ -38,6 +38,7 @@ DataConfig parse_data(const json& d, const std::string& source) {
 ModelConfig parse_model(const json& m, const std::string& source) {
   ModelConfig c;
   c.sh_degree = read<int>(m, "model", "sh_degree", source);
+  c.spectral_rank = read<int>(m, "model", "spectral_rank", source);
   c.sh_degree_every_fraction = read<double>(m, "model", "sh_degree_every_fraction", source);
   const json& b = m.at("background");
   c.background_per_band = !b.is_number();
@@ -73,6 +74,7 @@ OptimConfig parse_optim(const json& o, const std::string& source) {
   c.rotation_lr = read<double>(o, "optim", "rotation_lr", source);
   c.adam_eps = read<double>(o, "optim", "adam_eps", source);
   c.background_lr = read<double>(o, "optim", "background_lr", source);
+  c.basis_lr = read<double>(o, "optim", "basis_lr", source);
   return c;
 }
 

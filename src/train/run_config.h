@@ -31,6 +31,10 @@ struct DataConfig {
 
 struct ModelConfig {
   int sh_degree = 3;
+  // The colour model (model/colour_model.h): 0 one SH set per band; K > 0 SH
+  // over K latent channels and a band basis (at most the band count); -1 the
+  // scene's own signal rank (core::whitened_signal_rank of its views).
+  int spectral_rank = 0;
   double sh_degree_every_fraction = 0;  // of iterations (train/schedule.h)
   // One value for every band (background_per_band false, one element), or
   // one per band (checked against the scene's band count: background()).
@@ -45,6 +49,7 @@ struct OptimConfig {
   double means_lr_decay_fraction = 1;            // of iterations
   double sh_dc_lr = 0;
   double sh_rest_lr_divisor = 1;  // sh_rest learns at sh_dc_lr / this
+  double basis_lr = 0;            // a latent colour model's basis and mean
   double opacity_lr = 0, scaling_lr = 0, rotation_lr = 0;
   double adam_eps = 1e-15;
   double background_lr = 0;

@@ -109,11 +109,20 @@ void Trainer::load_scene() {
 }
 
 void Trainer::build_modules() {
+  colour_ = initial_colour_model(*scene_, config_.model.spectral_rank);
+  if (colour_.latent()) {
+    colour_module_ = std::make_shared<torch::nn::Module>();
+    colour_.basis = colour_module_->register_parameter("basis", colour_.basis.clone());
+    colour_.mean = colour_module_->register_parameter("mean", colour_.mean.clone());
+    add_module("colour_model", colour_module_, config_.optim.basis_lr);
+  }
   const WavelengthEncoderConfig& we = config_.wavelength_encoder;
   if (we.enabled) {
     // Its initial weights come from the run's seed (the last layer is zero).
     torch::manual_seed(mix_seed(config_.seed, kEncoderInitStream));
-    encoder_ = model::WavelengthEncoder(we.network);
+    model::WavelengthEncoderOptions network = we.network;
+    network.sh_coeffs = int(colour_.encoder_width(network.sh_coeffs));
+    encoder_ = model::WavelengthEncoder(network);
     wavelengths01_ = model::normalise_wavelengths(scene_->wavelengths_nm);
     add_module("wavelength_encoder", encoder_.ptr(), we.lr);
   }
@@ -143,6 +152,11 @@ void Trainer::add_module(const std::string& name, std::shared_ptr<torch::nn::Mod
   for (const auto& m : state_.modules)
     if (m.name == name) throw core::Error("trainer: module '" + name + "' added twice");
   state_.modules.push_back({name, std::move(module), lr});
+}
+
+void Trainer::attach_colour() {
+  // The module's parameters are loaded in place, so these are still its own.
+  state_.gaussians.colour = colour_;
 }
 
 torch::Tensor Trainer::band_offsets() {
@@ -191,7 +205,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   t->load_scene();  // before touching the output, so bad input leaves it intact
   InitOptions options = t->config_.init;
   options.seed = mix_seed(t->config_.seed, 0);
-  t->state_.gaussians = initialise_gaussians(*t->scene_, options);
+  t->state_.gaussians = initialise_gaussians(*t->scene_, options, t->colour_);
   t->state_.stats.reset(t->state_.gaussians.size());
   t->create_optimizer();
   // Every file the run will read, resolved before anything is moved: a cube
@@ -224,6 +238,13 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
   model::AdamOptions options;
   options.eps = t->config_.optim.adam_eps;
   load_checkpoint(run.checkpoint(), t->state_, options);
+  t->attach_colour();
+  if (t->state_.gaussians.channels() != t->colour_.channels(t->scene_->bands()))
+    throw core::Error(run.checkpoint(),
+                      "has " + std::to_string(t->state_.gaussians.channels()) +
+                          " colour channels per Gaussian but the run's colour "
+                          "model has " +
+                          std::to_string(t->colour_.channels(t->scene_->bands())));
   if (t->state_.gaussians.bands() != t->scene_->bands())
     throw core::Error(run.checkpoint(), "has " + std::to_string(t->state_.gaussians.bands()) +
                                             " bands but the dataset loads " +
@@ -239,6 +260,7 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
     t->state_ = TrainState();
     t->state_.modules = modules;
     load_checkpoint(run.checkpoint(), t->state_, options);
+    t->attach_colour();
   } else if (iterations > 0) {
     t->writer_->resumed(t->state_.iteration, io::read_file(run.config()));
     io::write_file_atomically(run.config(), config.dump(2) + "\n");
@@ -411,7 +433,9 @@ void Trainer::write_outputs(double seconds) {
       {"num_gaussians", state_.gaussians.size()},
       {"bands", scene_->bands()},
       {"sh_degree", degree},
-      {"bytes_per_gaussian", model::training_bytes_per_gaussian(scene_->bands(), degree)},
+      {"colour_channels", state_.gaussians.channels()},
+      {"bytes_per_gaussian",
+       model::training_bytes_per_gaussian(state_.gaussians.channels(), degree)},
       {"peak_rss_mib", peak_rss_mib()},
       {"threads", core::thread_count()},
       {"thread_source", core::thread_source()},

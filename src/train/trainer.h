@@ -60,8 +60,10 @@ class Trainer {
   // TrainedModule). Call while the trainer is built (load_scene), before the
   // optimizer is created or a checkpoint is read.
   void add_module(const std::string& name, std::shared_ptr<torch::nn::Module> module, double lr);
-  // The wavelength encoder's per-band SH offsets [N, (degree+1)^2], or an
-  // undefined tensor when the encoder is off. Differentiable.
+  // The wavelength encoder's output per band [N, width]
+  // (model::ColourModel::encoder_width: SH offsets per band, or a latent
+  // basis row's), or an undefined tensor when the encoder is off.
+  // Differentiable.
   torch::Tensor band_offsets();
   TrainState& state() { return state_; }
   const io::Scene& scene() const { return *scene_; }
@@ -107,6 +109,11 @@ class Trainer {
   std::unique_ptr<DiffusionTerm> diffusion_;        // loss.diffusion > 0
   torch::Tensor wavelengths01_;                     // [N] the encoder's input
   std::unique_ptr<DenoiserFinetuning> finetuning_;  // made on its first step
+  // Holds a latent colour model's basis and mean as trained parameters;
+  // attach_colour() hands them to the Gaussians.
+  std::shared_ptr<torch::nn::Module> colour_module_;
+  model::ColourModel colour_;  // the starting colour model, from the config
+  void attach_colour();
   // Holds background_ as a trained parameter when model.learn_background is on.
   std::shared_ptr<torch::nn::Module> background_module_;
   std::unique_ptr<RunWriter> writer_;

@@ -23,6 +23,7 @@ using ply::Element;
 using ply::Type;
 
 constexpr const char* kWavelengthsComment = "wavelengths";
+constexpr const char* kBasisComment = "band_basis";
 
 struct OpenPly {
   std::ifstream in;
@@ -95,6 +96,37 @@ std::vector<double> parse_wavelengths(const fs::path& path, const ply::Header& h
     }
   }
   return wavelengths;
+}
+
+// The "band_basis" lines in order: [N, C + 1] (mean, then the basis row), or
+// undefined when there are none.
+torch::Tensor parse_band_basis(const fs::path& path, const ply::Header& header, int64_t channels) {
+  std::vector<double> values;
+  int64_t rows = 0;
+  for (const auto& comment : header.comments) {
+    std::istringstream words(comment);
+    std::string first, word;
+    words >> first;
+    if (first != kBasisComment) continue;
+    int64_t count = 0;
+    while (words >> word) {
+      double value = 0;
+      auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
+      if (error != std::errc() || end != word.data() + word.size() || !std::isfinite(value))
+        throw core::Error(path, "'comment band_basis' line " + std::to_string(rows + 1) +
+                                    " has a non-number '" + word + "'");
+      values.push_back(value);
+      ++count;
+    }
+    if (count != channels + 1)
+      throw core::Error(path, "'comment band_basis' line " + std::to_string(rows + 1) + " has " +
+                                  std::to_string(count) + " numbers; expected " +
+                                  std::to_string(channels + 1) +
+                                  " (the mean and one per f_dc_* channel)");
+    ++rows;
+  }
+  if (rows == 0) return {};
+  return torch::tensor(values, torch::kFloat64).reshape({rows, channels + 1}).to(torch::kFloat32);
 }
 
 // Shortest text that reads back as the same double.
@@ -220,10 +252,15 @@ GaussianPly read_gaussian_ply(const fs::path& path) {
 
   GaussianPly ply;
   ply.wavelengths_nm = parse_wavelengths(path, file.header);
-  if (!ply.wavelengths_nm.empty() && int64_t(ply.wavelengths_nm.size()) != N)
+  if (const torch::Tensor rows = parse_band_basis(path, file.header, N); rows.defined()) {
+    ply.mean = rows.select(1, 0).contiguous();
+    ply.basis = rows.slice(1, 1).contiguous();
+  }
+  if (!ply.wavelengths_nm.empty() && int64_t(ply.wavelengths_nm.size()) != ply.bands())
     throw core::Error(path,
                       "'comment wavelengths' lists " + std::to_string(ply.wavelengths_nm.size()) +
-                          " values but the file has " + std::to_string(N) + " bands (f_dc_*)");
+                          " values but the file has " + std::to_string(ply.bands()) +
+                          (ply.basis.defined() ? " bands (band_basis lines)" : " bands (f_dc_*)"));
   const int64_t G = vertex.count;
   ply.means = torch::empty({G, 3});
   ply.log_scales = torch::empty({G, 3});
@@ -252,9 +289,13 @@ void write_gaussian_ply(const fs::path& path, const GaussianPly& ply) {
   if (N < 1) throw core::Error(path, "cannot write PLY: sh_dc has no bands");
   if (K != 0 && K != 3 && K != 8 && K != 15)
     throw core::Error(path, "cannot write PLY: sh_rest must be [G, N, K] with K in {0, 3, 8, 15}");
-  if (!ply.wavelengths_nm.empty() && int64_t(ply.wavelengths_nm.size()) != N)
+  if (!ply.wavelengths_nm.empty() && int64_t(ply.wavelengths_nm.size()) != ply.bands())
     throw core::Error(path, "cannot write PLY: " + std::to_string(ply.wavelengths_nm.size()) +
-                                " wavelengths for " + std::to_string(N) + " bands");
+                                " wavelengths for " + std::to_string(ply.bands()) + " bands");
+  if (ply.basis.defined() && (ply.basis.dim() != 2 || ply.basis.size(1) != N ||
+                              !ply.mean.defined() || ply.mean.numel() != ply.basis.size(0)))
+    throw core::Error(path, "cannot write PLY: a band basis must be [N, C] with C = " +
+                                std::to_string(N) + " channels, and its mean [N]");
   std::vector<Block> blocks{{as_float_rows(path, ply.means, {G, 3}, "means")},
                             {torch::zeros({G, 3})},  // normals, unused by 3DGS tools
                             {as_float_rows(path, ply.sh_dc, {G, N}, "sh_dc")}};
@@ -281,6 +322,15 @@ void write_gaussian_ply(const fs::path& path, const GaussianPly& ply) {
     std::string line = kWavelengthsComment;
     for (double w : ply.wavelengths_nm) line += " " + format_number(w);
     comments.push_back(line);
+  }
+  if (ply.basis.defined()) {
+    const auto basis = ply.basis.detach().to(torch::kFloat32).contiguous();
+    const auto mean = ply.mean.detach().to(torch::kFloat32).contiguous();
+    for (int64_t b = 0; b < basis.size(0); ++b) {
+      std::string line = std::string(kBasisComment) + " " + format_number(mean[b].item<float>());
+      for (int64_t c = 0; c < N; ++c) line += " " + format_number(basis[b][c].item<float>());
+      comments.push_back(line);
+    }
   }
   write_rows(path, ply::binary_header(comments, "vertex", G, properties), G, blocks);
 }

@@ -12,16 +12,21 @@ namespace ddhgs::io {
 //   scale_0..2 rot_0..3
 // f_rest is band-major: f_rest_{b*K+k} is band b, SH coefficient k+1, with
 // K = (degree+1)^2 - 1. A "comment wavelengths w0 w1 ..." header line (nm).
+// A latent colour model (model/colour_model.h) has C channels instead of N
+// bands in f_dc_* and f_rest_*, and N header lines
+// "comment band_basis m_b B_b0 .. B_b(C-1)": band b's mean and basis row.
 struct GaussianPly {
   torch::Tensor means;                 // [G, 3] float32
   torch::Tensor log_scales;            // [G, 3]
   torch::Tensor quats;                 // [G, 4] (w, x, y, z)
   torch::Tensor logit_opacities;       // [G, 1]
-  torch::Tensor sh_dc;                 // [G, N]
-  torch::Tensor sh_rest;               // [G, N, K], K in {0, 3, 8, 15}
+  torch::Tensor sh_dc;                 // [G, C]; C = N per band
+  torch::Tensor sh_rest;               // [G, C, K], K in {0, 3, 8, 15}
   std::vector<double> wavelengths_nm;  // may be empty
+  torch::Tensor basis;                 // [N, C] latent colour model, else undefined
+  torch::Tensor mean;                  // [N] with basis
 
-  int64_t bands() const { return sh_dc.size(1); }
+  int64_t bands() const { return basis.defined() ? basis.size(0) : sh_dc.size(1); }
   int sh_degree() const;  // from K
 };
 
