@@ -157,6 +157,49 @@ TEST(TrainCli, WavelengthEncoderTrainsResumesAndIsBakedIntoThePly) {
   EXPECT_NEAR(evaluated, trained, 1e-4);
 }
 
+TEST(TrainCli, LatentColourModelTrainsResumesAndItsPlyRendersAsTrained) {
+  const std::string args = " --set model.spectral_rank=3" + kSchedule;
+  fs::path runs = test::temp_dir("train_cli_latent");
+  std::string out;
+  const fs::path straight = runs / "straight", split = runs / "split";
+  ASSERT_EQ(
+      train(scene().string() + " --out " + straight.string() + " --iterations 120" + args, &out), 0)
+      << out;
+  EXPECT_NE(out.find("colour model: 3 latent channels for 8 bands"), std::string::npos) << out;
+  const auto summary = read_json(straight / "train_summary.json");
+  EXPECT_EQ(summary["colour_channels"], 3);
+  EXPECT_EQ(summary["bytes_per_gaussian"], (11 + 3 * 16) * 16);
+  EXPECT_GT(summary["test_psnr_clean"].get<double>(), 19.0) << summary.dump();
+  // The PLY holds 3 channels per Gaussian and the 8 bands' basis rows.
+  const std::string ply = io::read_file(straight / "gaussians.ply");
+  EXPECT_NE(ply.find("property float f_dc_2\n"), std::string::npos);
+  EXPECT_EQ(ply.find("property float f_dc_3\n"), std::string::npos);
+  size_t rows = 0;
+  for (size_t at = ply.find("comment band_basis "); at != std::string::npos;
+       at = ply.find("comment band_basis ", at + 1))
+    ++rows;
+  EXPECT_EQ(rows, 8u);
+
+  // The basis, the coefficients and their optimizer state resume bit for bit.
+  copy_back_to(straight, 100, split);
+  ASSERT_EQ(train("--resume " + split.string(), &out), 0) << out;
+  EXPECT_EQ(io::read_file(split / "gaussians.ply"), ply);
+
+  // `ddhgs eval` renders the PLY alone and measures what the trainer did.
+  ASSERT_EQ(test::run_command(test::ddhgs_binary() + " eval " + straight.string(), &out), 0) << out;
+  EXPECT_NEAR(read_json(straight / "eval" / "metrics.json")["psnr"].get<double>(),
+              summary["test_psnr"].get<double>(), 1e-4);
+
+  // A rank above the band count is refused before anything is written.
+  ASSERT_EQ(train(scene().string() + " --out " + (runs / "nine").string() +
+                      " --set model.spectral_rank=9",
+                  &out),
+            1);
+  EXPECT_NE(out.find("model.spectral_rank 9 is above the scene's 8 bands"), std::string::npos)
+      << out;
+  EXPECT_FALSE(fs::exists(runs / "nine"));
+}
+
 TEST(TrainCli, RefusesAnExistingRunAndBadConfigs) {
   fs::path runs = test::temp_dir("train_cli_refuse");
   fs::create_directories(runs / "taken");

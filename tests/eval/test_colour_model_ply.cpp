@@ -1,0 +1,69 @@
+// The colour model's PLY form (model/colour_model.h, io/ply/ply.h): a latent
+// model's basis and mean survive the file bit for bit.
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "io/files/atomic_file.h"
+#include "io/ply/ply.h"
+#include "model/gaussians.h"
+#include "render/render_fixture.h"
+#include "support/test_support.h"
+
+namespace ddhgs::test {
+namespace {
+
+using torch::Tensor;
+
+constexpr int kWidth = 40, kHeight = 30;
+
+// A latent model of 9 bands and 3 channels (SH degree 1) from the
+// rasterizer's random scene, with a random basis and mean.
+model::Gaussians latent_scene(int seed) {
+  const SplatScene s = random_scene(seed, 50, 3, kWidth, kHeight);
+  model::Gaussians g;
+  g.means = s.means;
+  g.log_scales = s.log_scales;
+  g.quats = s.quats;
+  g.logit_opacities = s.logit_opacities;
+  g.sh_dc = (s.colors / model::kShC0).contiguous();
+  g.sh_rest = (torch::randn({50, 3, 3}) * 0.05).contiguous();
+  g.active_sh_degree = 1;
+  g.colour.basis = torch::randn({9, 3}) * 0.5;
+  g.colour.mean = torch::rand({9});
+  return g;
+}
+
+TEST(ColourModel, PlyKeepsTheBasisAndRendersTheSame) {
+  const core::Camera camera = test_core_camera(kWidth, kHeight);
+  const model::Gaussians g = latent_scene(9);
+  const Tensor background = torch::rand({9});
+  const auto dir = temp_dir("colour_model_ply");
+  const std::vector<double> wavelengths = {400, 450, 500, 550, 600, 650, 700, 750, 800};
+  io::write_gaussian_ply(dir / "latent.ply", model::to_ply(g, wavelengths));
+  const io::GaussianPly ply = io::read_gaussian_ply(dir / "latent.ply");
+  EXPECT_EQ(ply.bands(), 9);
+  EXPECT_EQ(ply.sh_dc.size(1), 3);
+  EXPECT_TRUE(torch::equal(ply.basis, g.colour.basis));
+  EXPECT_TRUE(torch::equal(ply.mean, g.colour.mean));
+  model::Gaussians back = model::from_ply(ply);
+  back.active_sh_degree = 1;
+  EXPECT_TRUE(torch::equal(model::render_gaussians(back, camera, background).image,
+                           model::render_gaussians(g, camera, background).image));
+
+  // A band_basis line with a wrong count names the line.
+  std::string text = io::read_file(dir / "latent.ply");
+  const size_t at = text.find("comment band_basis ");
+  ASSERT_NE(at, std::string::npos);
+  text.insert(text.find('\n', at), " 1");
+  io::write_file_atomically(dir / "bad.ply", text);
+  try {
+    io::read_gaussian_ply(dir / "bad.ply");
+    FAIL() << "read a band_basis line of 5 numbers for 3 channels";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("line 1 has 5 numbers; expected 4"), std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace ddhgs::test
