@@ -4,7 +4,9 @@
 //   build/bench/bench_train_step                      # the default cases below
 //   build/bench/bench_train_step --only W H G N       # one case (e.g. for perf)
 //   build/bench/bench_train_step --scene DIR [--downscale D] --only 0 0 G 0
-//   options: --iterations K (timed, default 5), --views V (default 6)
+//   options: --iterations K (timed, default 5), --views V (default 6),
+//            --ranks R[,R...] (model.spectral_rank, default 0: per band; each
+//            rank trains on the same scene, one after the other)
 //
 // Per case it writes a synthetic scene (`ddhgs synth --preset bayspec` with
 // the case's size and band count, supersample 1) to a temporary folder,
@@ -12,7 +14,9 @@
 // SH degree raised every iteration (degree 3 after the 3 warm-up
 // iterations), then times K iterations: wall, user and system CPU time and
 // minor page faults per iteration (getrusage), peak RSS, and each stage's
-// share (core/stage_timer.h; stages exclude the stages nested in them).
+// share (core/stage_timer.h; stages exclude the stages nested in them), and
+// the final save: checkpoint and PLY, as `ddhgs train` writes them at its end.
+// Peak RSS is the process's: run one rank alone to measure its memory.
 // Threads: $DDHGS_THREADS, else every core.
 #include <sys/resource.h>
 #include <unistd.h>
@@ -28,6 +32,7 @@
 #include "core/early_setup.h"
 #include "core/stage_timer.h"
 #include "core/threads.h"
+#include "io/ply/ply.h"
 #include "synth/generate.h"
 #include "train/config.h"
 #include "train/run_folder.h"
@@ -55,6 +60,7 @@ struct Options {
   int views = 6;
   fs::path scene;  // use this scene instead of a synthetic one
   int downscale = 1;
+  std::vector<int> ranks = {0};
 };
 
 struct Usage {
@@ -86,8 +92,9 @@ fs::path write_scene(const Case& c, int views, const fs::path& dir) {
   return out;
 }
 
-nlohmann::json train_config(const fs::path& scene, const Options& o, int64_t gaussians) {
+nlohmann::json train_config(const fs::path& scene, const Options& o, int64_t gaussians, int rank) {
   nlohmann::json config = train::load_preset("default");
+  config["model"]["spectral_rank"] = rank;
   config["data"]["path"] = fs::absolute(scene).string();
   config["data"]["downscale"] = o.downscale;
   config["init"]["random"] = true;
@@ -123,15 +130,20 @@ struct TempDir {
   ~TempDir() { fs::remove_all(path); }
 };
 
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 void run_case(const Case& c, const Options& o) {
   const TempDir temp;
   const fs::path& dir = temp.path;
   const auto synth_start = std::chrono::steady_clock::now();
   const fs::path scene = o.scene.empty() ? write_scene(c, o.views, dir) : o.scene;
-  const double synth_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - synth_start).count();
-  {
-    auto trainer = train::Trainer::start(train_config(scene, o, c.gaussians), {dir / "run"}, false);
+  const double synth_s = seconds_since(synth_start);
+  for (int rank : o.ranks) {
+    const fs::path run_dir = dir / ("run_" + std::to_string(rank));
+    auto trainer =
+        train::Trainer::start(train_config(scene, o, c.gaussians, rank), {run_dir}, false);
     const auto& views = trainer->scene().views;
     const auto& in = views.at(size_t(trainer->scene().train.front())).camera.intrinsics;
     for (int i = 0; i < o.warmup; ++i) trainer->advance();
@@ -145,17 +157,33 @@ void run_case(const Case& c, const Options& o) {
                   after.faults - before.faults};
     const int k = o.iterations;
     const double cpu = d.user + d.system;
+    const model::Gaussians& g = trainer->state().gaussians;
     std::printf(
-        "%dx%d, %lld bands, %lld Gaussians, threads %d, %d iterations (after %d warm-up), "
+        "%dx%d, %lld bands, %s, %lld Gaussians, threads %d, %d iterations (after %d warm-up), "
         "scene %.0f s\n",
         in.width, in.height, (long long)trainer->scene().bands(),
-        (long long)trainer->state().gaussians.size(), core::thread_count(), k, o.warmup, synth_s);
+        g.colour.latent() ? ("rank " + std::to_string(g.colour.rank())).c_str() : "per band",
+        (long long)g.size(), core::thread_count(), k, o.warmup, synth_s);
     std::printf(
         "  per iteration: wall %.3f s, CPU %.3f s (user %.3f + system %.3f, system %.1f %%), "
         "minor faults %lld; peak RSS %.0f MiB\n",
         d.wall / k, cpu / k, d.user / k, d.system / k, cpu > 0 ? 100.0 * d.system / cpu : 0.0,
         (long long)(d.faults / k), peak_rss_mib());
     print_stages(d, k);
+    // The final save, as the trainer writes it (the encoder is off here).
+    const auto save_start = std::chrono::steady_clock::now();
+    train::save_checkpoint(run_dir / "final.pt", trainer->state());
+    const double checkpoint_s = seconds_since(save_start);
+    const auto ply_start = std::chrono::steady_clock::now();
+    io::write_gaussian_ply(run_dir / "final.ply",
+                           model::to_ply(g, trainer->scene().wavelengths_nm));
+    const double ply_s = seconds_since(ply_start);
+    std::printf(
+        "  %lld bytes per Gaussian in training; final save %.2f s: checkpoint %.2f s (%.0f MB), "
+        "PLY %.2f s (%.0f MB)\n",
+        (long long)model::training_bytes_per_gaussian(g.channels(), g.max_sh_degree()),
+        checkpoint_s + ply_s, checkpoint_s, double(fs::file_size(run_dir / "final.pt")) / 1e6,
+        ply_s, double(fs::file_size(run_dir / "final.ply")) / 1e6);
     std::fflush(stdout);
   }
 }
@@ -184,6 +212,15 @@ Options parse(int argc, char** argv) {
       o.views = int(number(i));
     } else if (!std::strcmp(argv[i], "--downscale")) {
       o.downscale = int(number(i));
+    } else if (!std::strcmp(argv[i], "--ranks")) {
+      if (i + 1 >= argc) usage_error("--ranks needs a list");
+      o.ranks.clear();
+      std::string list = argv[++i];
+      for (size_t at = 0; at <= list.size();) {
+        const size_t comma = std::min(list.find(',', at), list.size());
+        o.ranks.push_back(std::atoi(list.substr(at, comma - at).c_str()));
+        at = comma + 1;
+      }
     } else if (!std::strcmp(argv[i], "--scene")) {
       if (i + 1 >= argc) usage_error("--scene needs a folder");
       o.scene = argv[++i];

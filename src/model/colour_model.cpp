@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "render/decode.h"
 #include "render/sh.h"
 
 namespace ddhgs::model {
@@ -20,11 +21,14 @@ torch::Tensor ColourModel::decode(const torch::Tensor& blended, const torch::Ten
   const int64_t H = blended.size(0), W = blended.size(1);
   torch::Tensor B = basis, m = mean, bg = background;
   if (output.defined()) B = output.matmul(B), m = output.matmul(m), bg = output.matmul(bg);
-  // One product: [z | alpha | 1] . [B^T ; (m - bg) ; bg].
+  if (blended.scalar_type() == torch::kFloat32)
+    return render::decode_latent(blended.reshape({H * W, rank()}), alpha, B, m, bg)
+        .reshape({H, W, B.size(0)});
+  // Other dtypes (tests' double paths): one product [z | alpha | 1] . [B^T ; m - bg ; bg].
   auto rows = torch::cat({blended.reshape({H * W, rank()}), alpha.reshape({H * W, 1}),
                           torch::ones({H * W, 1}, blended.options())},
                          1);
-  auto map = torch::cat({B.t(), (m - bg).unsqueeze(0), bg.unsqueeze(0)}, 0);  // [K + 2, M]
+  auto map = torch::cat({B.t(), (m - bg).unsqueeze(0), bg.unsqueeze(0)}, 0).to(rows.dtype());
   return rows.matmul(map).reshape({H, W, B.size(0)});
 }
 
