@@ -1,17 +1,22 @@
 // `ddhgs render RUN`: a trained run's views, or an orbit around the scene, as
 // cubes and pictures (pseudo-RGB, a band or band range, error heatmaps),
 // optionally after the run's diffusion denoiser (--denoise K).
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 
 #include "app/registry.h"
 #include "app/trained_run.h"
+#include "core/band_map.h"
 #include "core/error.h"
+#include "core/log.h"
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
 #include "eval/render_frames.h"
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
+#include "io/response/response_csv.h"
 
 namespace ddhgs::app {
 namespace {
@@ -29,6 +34,8 @@ struct RenderArgs {
   bool diff = false;
   double diff_max = 0.1;
   std::string data;
+  std::string wavelengths;
+  std::string response;
   int64_t denoise = 0;
   bool ddpm = false;
   SamplerFlags sampler;
@@ -66,6 +73,14 @@ Action setup(CLI::App& parent) {
       ->check(within(1e-12, 1e12))
       ->capture_default_str();
   cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
+  auto* wavelengths = cmd->add_option(
+      "--wavelengths", args->wavelengths,
+      "Render these wavelengths instead of the captured bands (nm): START:STOP:STEP, e.g. "
+      "450:950:5, or a list 550,670.5; interpolated between captured bands");
+  cmd->add_option("--response", args->response,
+                  "Render what another sensor sees: a CSV of spectral response functions "
+                  "(wavelength_nm, one column per channel; examples/responses/)")
+      ->excludes(wavelengths);
   auto* denoise = cmd->add_option(
       "--denoise", args->denoise,
       "Denoise every render with the run's diffusion denoiser, DDIM with this many steps");
@@ -79,13 +94,60 @@ Action setup(CLI::App& parent) {
     const io::Scene& scene = *run.scene;
     eval::RenderOptions options;
     options.format = eval::parse_output_format(args->format);
-    options.bands = eval::select_bands(args->band, args->band_range, scene.wavelengths_nm);
+    std::string folder_suffix;
+    if (!args->wavelengths.empty()) {
+      options.wavelengths_nm = core::parse_wavelength_list(args->wavelengths, "--wavelengths");
+      try {
+        options.band_map = core::interpolation_map(scene.wavelengths_nm, options.wavelengths_nm);
+      } catch (const core::Error& e) {
+        throw core::Error(std::string("--wavelengths: ") + e.what());
+      }
+      folder_suffix = "_wavelengths";
+    } else if (!args->response.empty()) {
+      const core::ResponseFunctions response = io::read_response_csv(args->response);
+      core::ResponseMap map;
+      try {
+        map = core::response_map(response, scene.wavelengths_nm);
+      } catch (const core::Error& e) {
+        throw core::Error(args->response, e.what());
+      }
+      for (size_t c = 0; c < response.channels.size(); ++c)
+        if (map.captured[c] < 0.99)
+          core::log_warn("response '" + response.channels[c] +
+                         "': " + std::to_string(int(std::lround(100 * (1 - map.captured[c])))) +
+                         " % of it lies outside the model's bands and is left out");
+      // Cubes hold channels by increasing wavelength, as captured cubes do.
+      std::vector<size_t> order(map.centres_nm.size());
+      for (size_t c = 0; c < order.size(); ++c) order[c] = c;
+      std::stable_sort(order.begin(), order.end(),
+                       [&](size_t a, size_t b) { return map.centres_nm[a] < map.centres_nm[b]; });
+      std::string listed;
+      std::vector<int64_t> rows;
+      for (size_t c : order) {
+        rows.push_back(int64_t(c));
+        options.wavelengths_nm.push_back(map.centres_nm[c]);
+        listed += (listed.empty() ? "" : ", ") + response.channels[c] + " (" +
+                  std::to_string(int(std::lround(map.centres_nm[c]))) + " nm)";
+      }
+      for (size_t i = 1; i < order.size(); ++i)
+        core::require(options.wavelengths_nm[i] > options.wavelengths_nm[i - 1], args->response,
+                      "two channels have the same centre wavelength");
+      options.band_map = map.map.index_select(0, torch::tensor(rows));
+      core::log_info("channels of the rendered cubes, by centre wavelength: " + listed);
+      folder_suffix = "_" + fs::path(args->response).stem().string();
+    }
+    const std::vector<double>& shown =
+        options.band_map.defined() ? options.wavelengths_nm : scene.wavelengths_nm;
+    options.bands = eval::select_bands(args->band, args->band_range, shown);
     options.colormap = eval::parse_colormap(args->colormap);
     options.diff = args->diff;
     options.diff_max = args->diff_max;
     std::string what = args->orbit > 0 ? "orbit" : args->split;
-    std::string folder = what;
+    std::string folder = what + folder_suffix;
     if (args->denoise > 0 || args->ddpm) {
+      core::require(!options.band_map.defined(),
+                    "--denoise: the denoiser works on the captured bands; drop --wavelengths or "
+                    "--response to denoise");
       core::require(run.denoiser.has_value(), run.root,
                     "this run has no denoiser.pt (trained without loss.diffusion): drop --denoise");
       model::SamplerOptions sampler = sampler_options(run, args->sampler);

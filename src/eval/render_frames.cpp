@@ -56,7 +56,10 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
                   const torch::Tensor& background, const std::vector<Frame>& frames,
                   const RenderOptions& options, const fs::path& out_dir) {
   torch::NoGradGuard no_grad;
-  const std::vector<double>& wavelengths = scene.wavelengths_nm;
+  const bool mapped = options.band_map.defined();
+  const std::vector<double>& wavelengths = mapped ? options.wavelengths_nm : scene.wavelengths_nm;
+  model::Gaussians model = gaussians;  // handles to the same tensors
+  if (mapped) model.colour = gaussians.colour.mapped(options.band_map);
   const std::string label = options.bands.label;
   int written = 0;
   core::ProgressBar bar("render", int64_t(frames.size()));
@@ -64,7 +67,7 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
     const Frame& frame = frames[i];
     fs::path stem = out_dir / frame.name;
     torch::Tensor image =
-        model::render_gaussians(gaussians, frame.camera, background).image;  // [H, W, N]
+        model::render_gaussians(model, frame.camera, background).image;  // [H, W, N or M]
     if (options.transform) image = options.transform(image);
     if (options.format == OutputFormat::Npy) {
       io::write_npy(stem.string() + ".npy", image);
@@ -80,6 +83,7 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
     if (options.diff && frame.view >= 0) {
       torch::Tensor truth =
           scene.has_clean() ? scene.clean_image(frame.view) : scene.image(frame.view);  // [H, W, N]
+      if (mapped) truth = torch::matmul(truth, options.band_map.to(truth.scalar_type()).t());
       torch::Tensor error =
           error_heatmap(image, truth, options.bands, options.diff_max, options.colormap);
       io::write_png(

@@ -39,6 +39,12 @@ struct RenderOptions {
   // Applied to every render before it is written (e.g. the diffusion
   // denoiser); [H, W, N] -> [H, W, N]. Empty: the raw render.
   std::function<torch::Tensor(const torch::Tensor& image)> transform;
+  // Output channels other than the bands (core/band_map.h): [M, N], applied
+  // after the colour model's decode and to the ground truth of --diff, with
+  // the channels' wavelengths (for pictures and ENVI headers). Undefined:
+  // the N bands.
+  torch::Tensor band_map;
+  std::vector<double> wavelengths_nm;
 };
 
 // Frames for the views of a split, named by their file stems.

@@ -3,6 +3,7 @@
 // against finite differences, and its maps (tests/eval: its PLY form).
 #include <gtest/gtest.h>
 
+#include "core/band_map.h"
 #include "model/colour_model.h"
 #include "model/gaussians.h"
 #include "render/reference.h"
@@ -189,6 +190,45 @@ TEST(ColourModel, AnOutputMapAppliesAfterDecodingInBothForms) {
     const Tensor got = model::render_gaussians(mapped, camera, background).image;
     ASSERT_EQ(got.size(2), 2);
     EXPECT_LT(scaled_error(got, torch::matmul(bands, map.t())), 1e-5);
+  }
+}
+
+TEST(ColourModel, AResponseRenderIsTheResponseWeightedSumOfTheDenseWavelengthRender) {
+  const core::Camera camera = test_core_camera(kWidth, kHeight);
+  const std::vector<double> bands = {400, 450, 500, 550, 600, 650, 700, 750, 800};
+  core::ResponseFunctions response;
+  for (double w = 380; w <= 820; w += 4) response.wavelengths_nm.push_back(w);
+  response.channels = {"narrow", "wide"};
+  const auto w = torch::tensor(response.wavelengths_nm, torch::kFloat64);
+  response.values =
+      torch::stack({torch::exp(-((w - 560) / 20).pow(2)), torch::exp(-((w - 640) / 90).pow(2))}, 1);
+  const core::ResponseMap srf = core::response_map(response, bands);
+  // The samples inside the bands, rendered as wavelengths of their own.
+  std::vector<double> inside;
+  std::vector<int64_t> rows;
+  for (size_t s = 0; s < response.wavelengths_nm.size(); ++s)
+    if (response.wavelengths_nm[s] >= 400 && response.wavelengths_nm[s] <= 800) {
+      inside.push_back(response.wavelengths_nm[s]);
+      rows.push_back(int64_t(s));
+    }
+  const std::vector<double> trapezoid = core::trapezoid_weights(response.wavelengths_nm);
+  const Tensor background = torch::rand({9});
+  for (model::Gaussians g : {latent_scene(17), scene_gaussians(17, 50, 9)}) {
+    model::Gaussians dense = g, sensor = g;
+    dense.colour = g.colour.mapped(core::interpolation_map(bands, inside));
+    sensor.colour = g.colour.mapped(srf.map);
+    const Tensor dense_image =
+        model::render_gaussians(dense, camera, background).image.to(torch::kFloat64);
+    const Tensor got = model::render_gaussians(sensor, camera, background).image;
+    for (int64_t c = 0; c < 2; ++c) {
+      // sum_s w_s r_c(s) image(s) / sum_s w_s r_c(s) over the samples inside.
+      Tensor weights =
+          torch::tensor(trapezoid, torch::kFloat64).index_select(0, torch::tensor(rows)) *
+          response.values.select(1, c).index_select(0, torch::tensor(rows));
+      weights = weights / weights.sum();
+      const Tensor expected = torch::matmul(dense_image, weights);
+      EXPECT_LT(scaled_error(got.select(2, c), expected), 1e-5) << response.channels[c];
+    }
   }
 }
 

@@ -1,0 +1,151 @@
+#include "core/band_map.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+
+#include "core/error.h"
+
+namespace ddhgs::core {
+namespace {
+
+std::string nm(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g nm", value);
+  return text;
+}
+
+double parse_number(const std::string& word, const std::string& option) {
+  double value = 0;
+  size_t first = word.find_first_not_of(' '), last = word.find_last_not_of(' ');
+  const std::string trimmed =
+      first == std::string::npos ? "" : word.substr(first, last - first + 1);
+  auto [end, error] = std::from_chars(trimmed.data(), trimmed.data() + trimmed.size(), value);
+  if (trimmed.empty() || error != std::errc() || end != trimmed.data() + trimmed.size() ||
+      !std::isfinite(value))
+    throw Error(option + ": '" + word + "' is not a number");
+  return value;
+}
+
+// Interpolation weights of one wavelength over increasing from_nm: adds
+// `scale` times them into row[0..N).
+void add_interpolated(const std::vector<double>& from_nm, double wavelength, double scale,
+                      double* row) {
+  const size_t n = from_nm.size();
+  if (n == 1) {
+    row[0] += scale;
+    return;
+  }
+  size_t hi =
+      size_t(std::upper_bound(from_nm.begin(), from_nm.end(), wavelength) - from_nm.begin());
+  hi = std::clamp<size_t>(hi, 1, n - 1);
+  const size_t lo = hi - 1;
+  const double t = (wavelength - from_nm[lo]) / (from_nm[hi] - from_nm[lo]);
+  row[lo] += scale * (1 - t);
+  row[hi] += scale * t;
+}
+
+void require_increasing(const std::vector<double>& from_nm) {
+  require(!from_nm.empty(), "band map: the model has no wavelengths");
+  for (size_t i = 1; i < from_nm.size(); ++i)
+    require(from_nm[i] > from_nm[i - 1],
+            "band map: the model's wavelengths must increase (band " + std::to_string(i) + ")");
+}
+
+}  // namespace
+
+torch::Tensor interpolation_map(const std::vector<double>& from_nm,
+                                const std::vector<double>& to_nm) {
+  require_increasing(from_nm);
+  require(!to_nm.empty(), "band map: no wavelengths to render");
+  const double lo = from_nm.front(), hi = from_nm.back();
+  auto map = torch::zeros({int64_t(to_nm.size()), int64_t(from_nm.size())}, torch::kFloat64);
+  double* data = map.data_ptr<double>();
+  for (size_t m = 0; m < to_nm.size(); ++m) {
+    const double w = to_nm[m];
+    const double slack = 1e-9 * std::max(1.0, hi - lo);
+    if (w < lo - slack || w > hi + slack)
+      throw Error("wavelength " + nm(w) + " is outside the model's bands (" + nm(lo) + " to " +
+                  nm(hi) + "); ddhgs interpolates between captured bands, it does not " +
+                  "extrapolate");
+    add_interpolated(from_nm, std::clamp(w, lo, hi), 1.0, data + m * from_nm.size());
+  }
+  return map;
+}
+
+std::vector<double> parse_wavelength_list(const std::string& text, const std::string& option) {
+  std::vector<double> out;
+  if (text.find(':') != std::string::npos) {
+    std::vector<double> parts;
+    size_t at = 0;
+    for (;;) {
+      const size_t colon = text.find(':', at);
+      parts.push_back(parse_number(text.substr(at, colon - at), option));
+      if (colon == std::string::npos) break;
+      at = colon + 1;
+    }
+    if (parts.size() != 3)
+      throw Error(option + ": '" + text + "' must be START:STOP:STEP (nm), e.g. 450:950:5");
+    const double start = parts[0], stop = parts[1], step = parts[2];
+    if (!(step > 0) || stop < start)
+      throw Error(option + ": '" + text + "' needs STOP >= START and a positive STEP");
+    const double count = std::floor((stop - start) / step + 1e-9) + 1;
+    if (count > 100000) throw Error(option + ": '" + text + "' asks for over 100,000 wavelengths");
+    for (int64_t i = 0; i < int64_t(count); ++i) out.push_back(start + double(i) * step);
+    return out;
+  }
+  size_t at = 0;
+  for (;;) {
+    const size_t comma = text.find(',', at);
+    out.push_back(parse_number(text.substr(at, comma - at), option));
+    if (comma == std::string::npos) break;
+    at = comma + 1;
+  }
+  return out;
+}
+
+std::vector<double> trapezoid_weights(const std::vector<double>& wavelengths_nm) {
+  const size_t s = wavelengths_nm.size();
+  std::vector<double> w(s, 0.0);
+  if (s == 1) w[0] = 1;
+  for (size_t i = 0; i + 1 < s; ++i) {
+    const double half = 0.5 * (wavelengths_nm[i + 1] - wavelengths_nm[i]);
+    w[i] += half;
+    w[i + 1] += half;
+  }
+  return w;
+}
+
+ResponseMap response_map(const ResponseFunctions& response, const std::vector<double>& from_nm) {
+  require_increasing(from_nm);
+  const int64_t S = int64_t(response.wavelengths_nm.size()), C = response.values.size(1);
+  const int64_t N = int64_t(from_nm.size());
+  const std::vector<double> weights = trapezoid_weights(response.wavelengths_nm);
+  const auto values = response.values.to(torch::kFloat64).contiguous();
+  const double* r = values.data_ptr<double>();
+  ResponseMap out;
+  out.map = torch::zeros({C, N}, torch::kFloat64);
+  double* map = out.map.data_ptr<double>();
+  const double lo = from_nm.front(), hi = from_nm.back();
+  for (int64_t c = 0; c < C; ++c) {
+    double inside = 0, total = 0, centre = 0;
+    for (int64_t s = 0; s < S; ++s) {
+      const double w = weights[size_t(s)] * r[s * C + c];
+      const double wavelength = response.wavelengths_nm[size_t(s)];
+      total += w;
+      if (wavelength < lo || wavelength > hi) continue;
+      inside += w;
+      centre += w * wavelength;
+      add_interpolated(from_nm, wavelength, w, map + c * N);
+    }
+    if (!(inside > 0))
+      throw Error("response '" + response.channels[size_t(c)] + "' has no response between " +
+                  nm(lo) + " and " + nm(hi) + ", the model's bands");
+    for (int64_t n = 0; n < N; ++n) map[c * N + n] /= inside;
+    out.centres_nm.push_back(centre / inside);
+    out.captured.push_back(inside / total);
+  }
+  return out;
+}
+
+}  // namespace ddhgs::core
