@@ -13,6 +13,8 @@
 #include "core/log.h"
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
+#include "eval/held_out_bands.h"
+#include "io/files/atomic_file.h"
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
 #include "io/scene/backdrop.h"
@@ -30,6 +32,7 @@ struct EvalArgs {
   std::vector<int64_t> denoise_steps = {1, 10};
   bool ddpm = false, no_denoise = false;
   bool align_poses = false;
+  bool held_out_bands = false;
   eval::AlignOptions align;
   SamplerFlags sampler;
 };
@@ -66,6 +69,10 @@ Action setup(CLI::App& parent) {
       ->capture_default_str();
   add_sampler_flags(cmd, args->sampler);
   cmd->add_flag("--no-denoise", args->no_denoise, "Evaluate the raw render only");
+  cmd->add_flag("--held-out-bands", args->held_out_bands,
+                "For a run trained on every k-th band (data.band_step k): also render the "
+                "bands it skipped and measure them per band against the dataset's own; writes "
+                "RUN/eval/held_out_bands.json");
   auto* denoise_steps_option = cmd->get_option("--denoise-steps");
   return [args, denoise_steps_option] {
     TrainedRun run = open_trained_run(args->run, args->data);
@@ -100,6 +107,18 @@ Action setup(CLI::App& parent) {
     eval::EvalReport report =
         eval::evaluate(*run.scene, run.gaussians, run.background, views, args->split, options);
 
+    std::optional<eval::HeldOutBands> held_out;
+    if (args->held_out_bands) {
+      io::LoadOptions every_band = run.config.data.load;
+      core::require(every_band.band_step > 1, run.root,
+                    "was trained on every band (data.band_step 1): no band is held out; train "
+                    "with --set data.band_step=2 to hold out every second band");
+      every_band.band_step = 1;
+      const auto all_bands = io::load_scene(run.scene->root, every_band);
+      held_out = eval::evaluate_held_out_bands(*all_bands, run.gaussians, run.scene->wavelengths_nm,
+                                               run.background, views);
+    }
+
     std::optional<eval::DenoisedReport> denoised;
     if (!settings.empty()) {
       denoised = eval::evaluate_denoised(*run.scene, run.gaussians, run.background, *run.denoiser,
@@ -118,12 +137,16 @@ Action setup(CLI::App& parent) {
         [&](const fs::path& tmp) {
           eval::write_metrics_json(tmp / metrics, report);
           eval::write_per_view_csv(tmp / per_view, report);
+          if (held_out)
+            io::write_file_atomically(tmp / ("held_out_bands" + suffix + ".json"),
+                                      eval::to_json(*held_out).dump(2) + "\n");
           if (!denoised) return;
           eval::write_denoised_json(tmp / denoised_json, *denoised);
           eval::write_denoised_csv(tmp / denoised_csv, *denoised);
         });
     std::cout << eval::format_report(report) << "wrote " << (out / metrics).string() << " and "
               << (out / per_view).string() << "\n";
+    if (held_out) std::cout << eval::format_held_out(*held_out);
     if (denoised)
       std::cout << eval::format_denoised(*denoised) << "wrote " << (out / denoised_json).string()
                 << " and " << (out / denoised_csv).string() << "\n";

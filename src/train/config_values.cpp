@@ -39,6 +39,7 @@ constexpr Range kRanges[] = {
     {"data.band_min_nm", 0, 1e9, false},
     {"data.band_max_nm", 0, 1e9, false},
     {"data.bin", 1, 100000, false, true},
+    {"data.band_step", 1, 100000, false, true},
     {"data.cache_mb", 0, kMaxMiB, false, true},
     {"model.sh_degree", 0, 3, false, true},
     {"model.spectral_rank", -1, 4096, false, true},

@@ -31,6 +31,7 @@ DataConfig parse_data(const json& d, const std::string& source) {
   o.band_min_nm = read<double>(d, "data", "band_min_nm", source);
   o.band_max_nm = read<double>(d, "data", "band_max_nm", source);
   o.bin = read<int>(d, "data", "bin", source);
+  o.band_step = read<int>(d, "data", "band_step", source);
   o.cache_mb = read<size_t>(d, "data", "cache_mb", source);
   return c;  // ranges and the band range: validate_config (config_values.cpp)
 }

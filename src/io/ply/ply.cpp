@@ -256,10 +256,12 @@ GaussianPly read_gaussian_ply(const fs::path& path) {
     ply.mean = rows.select(1, 0).contiguous();
     ply.basis = rows.slice(1, 1).contiguous();
   }
-  if (!ply.wavelengths_nm.empty() && int64_t(ply.wavelengths_nm.size()) != ply.bands())
+  // sh_dc is not read yet: the band count comes from the basis or f_dc_*.
+  const int64_t bands = ply.basis.defined() ? ply.basis.size(0) : N;
+  if (!ply.wavelengths_nm.empty() && int64_t(ply.wavelengths_nm.size()) != bands)
     throw core::Error(path,
                       "'comment wavelengths' lists " + std::to_string(ply.wavelengths_nm.size()) +
-                          " values but the file has " + std::to_string(ply.bands()) +
+                          " values but the file has " + std::to_string(bands) +
                           (ply.basis.defined() ? " bands (band_basis lines)" : " bands (f_dc_*)"));
   const int64_t G = vertex.count;
   ply.means = torch::empty({G, 3});

@@ -102,6 +102,18 @@ void select_bands(Scene& scene, std::vector<double> source_nm, bool rgb, const f
     scene.warnings.push_back("binning by " + std::to_string(o.bin) + " drops the last " +
                              std::to_string(kept.size() % size_t(o.bin)) + " band(s)");
   kept.resize(groups * size_t(o.bin));
+  core::require(o.band_step >= 1, "data.band_step must be at least 1");
+  // Every band_step-th group, from the first (the others are held out).
+  std::vector<int> stepped;
+  for (size_t g = 0; g < groups; g += size_t(o.band_step))
+    stepped.insert(stepped.end(), kept.begin() + long(g * size_t(o.bin)),
+                   kept.begin() + long((g + 1) * size_t(o.bin)));
+  if (o.band_step > 1 && stepped.size() / size_t(o.bin) < 2)
+    throw core::Error(origin, "data.band_step " + std::to_string(o.band_step) + " keeps " +
+                                  std::to_string(stepped.size() / size_t(o.bin)) + " of " +
+                                  std::to_string(groups) + " bands; it must keep at least 2");
+  kept = stepped;
+  groups = kept.size() / size_t(o.bin);
   scene.band_index = kept;
   scene.wavelengths_nm.clear();
   for (size_t g = 0; g < groups; ++g) {

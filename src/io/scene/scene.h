@@ -33,6 +33,7 @@ struct LoadOptions {
   double band_min_nm = 0;  // keep bands with wavelength in [min, max]
   double band_max_nm = 1e9;
   int bin = 1;             // average groups of this many adjacent bands
+  int band_step = 1;       // then keep every band_step-th (held-out bands: ddhgs eval)
   size_t cache_mb = 4096;  // memory budget for decoded views
   BandLayout layout = BandLayout::Auto;
   std::optional<double> scale;  // overrides the dataset's integer scale
