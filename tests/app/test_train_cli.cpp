@@ -190,6 +190,23 @@ TEST(TrainCli, LatentColourModelTrainsResumesAndItsPlyRendersAsTrained) {
   EXPECT_NEAR(read_json(straight / "eval" / "metrics.json")["psnr"].get<double>(),
               summary["test_psnr"].get<double>(), 1e-4);
 
+  // With the wavelength encoder, its output moves each band's basis row and
+  // mean; the PLY holds the moved basis, so eval again measures what the
+  // trainer did.
+  const fs::path encoder = runs / "encoder";
+  ASSERT_EQ(
+      train(scene().string() + " --out " + encoder.string() +
+                " --iterations 120 --wavelength-encoder --set wavelength_encoder.lr=1e-3" + args,
+            &out),
+      0)
+      << out;
+  const auto encoded = read_json(encoder / "train_summary.json");
+  EXPECT_GT(encoded["wavelength_offsets_abs_max"].get<double>(), 0.0);
+  EXPECT_NE(io::read_file(encoder / "gaussians.ply"), ply);
+  ASSERT_EQ(test::run_command(test::ddhgs_binary() + " eval " + encoder.string(), &out), 0) << out;
+  EXPECT_NEAR(read_json(encoder / "eval" / "metrics.json")["psnr"].get<double>(),
+              encoded["test_psnr"].get<double>(), 1e-4);
+
   // A rank above the band count is refused before anything is written.
   ASSERT_EQ(train(scene().string() + " --out " + (runs / "nine").string() +
                       " --set model.spectral_rank=9",
