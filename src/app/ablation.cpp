@@ -192,8 +192,10 @@ std::string output_label(const json& entry) {
 
 const std::vector<AblationRow>& ablation_rows() {
   static const std::vector<AblationRow> rows = {
-      {"3dgs", false, false, false}, {"sl", true, false, false},        {"we", false, true, false},
-      {"we+sl", true, true, false},  {"diffusion", false, false, true}, {"full", true, true, true}};
+      {"3dgs", false, false, false},        {"sl", true, false, false},
+      {"we", false, true, false},           {"we+sl", true, true, false},
+      {"diffusion", false, false, true},    {"full", true, true, true},
+      {"subspace", false, false, false, -1}};
   return rows;
 }
 
@@ -225,6 +227,7 @@ json row_config(const AblationOptions& options, const AblationRow& row) {
   train::set_key(config, "wavelength_encoder.enabled", row.wavelength_encoder ? "true" : "false",
                  source);
   train::set_key(config, "loss.diffusion", weight(row.diffusion, options.diffusion_weight), source);
+  train::set_key(config, "model.spectral_rank", std::to_string(row.spectral_rank), source);
   std::error_code ec;
   config["data"]["path"] = fs::absolute(options.data, ec).lexically_normal().string();
   train::validate_config(config, source);

@@ -15,13 +15,15 @@ namespace ddhgs::app {
 
 // What one row switches on; everything else comes from the preset.
 struct AblationRow {
-  std::string name;  // "3dgs", "sl", "we", "we+sl", "diffusion", "full"
+  std::string name;  // "3dgs", "sl", "we", "we+sl", "diffusion", "full", "subspace"
   bool spectral_loss = false;
   bool wavelength_encoder = false;
   bool diffusion = false;
+  int spectral_rank = 0;  // model.spectral_rank (-1: the scene's signal rank)
 };
 
-// The six rows of the paper's Table 3, in its order.
+// The six rows of the paper's Table 3, in its order, then ddhgs's own:
+// "subspace", the 3dgs row with a spectral-subspace colour model.
 const std::vector<AblationRow>& ablation_rows();
 // Rows by name, in the given order; core::Error naming `where` for an
 // unknown or repeated name.
@@ -46,7 +48,8 @@ struct AblationOptions {
 };
 
 // The resolved config of one row: preset, then assignments, then the row's
-// switches (loss.spectral, wavelength_encoder.enabled, loss.diffusion).
+// switches (loss.spectral, wavelength_encoder.enabled, loss.diffusion,
+// model.spectral_rank).
 nlohmann::json row_config(const AblationOptions& options, const AblationRow& row);
 
 // Trains (or resumes, or reuses when DIR/<row> already holds a finished run

@@ -11,7 +11,7 @@ namespace {
 
 struct AblateArgs {
   std::string data, out;
-  std::vector<std::string> rows = {"3dgs", "sl", "we", "we+sl", "diffusion", "full"};
+  std::vector<std::string> rows = {"3dgs", "sl", "we", "we+sl", "diffusion", "full", "subspace"};
   AblationOptions options;
 };
 
@@ -19,7 +19,8 @@ Action setup(CLI::App& parent) {
   auto args = std::make_shared<AblateArgs>();
   CLI::App* cmd = parent.add_subcommand(
       "ablate",
-      "Train and evaluate the DD-HGS ablation rows (3DGS, +SL, +WE, +WE+SL, +Diffusion, full) "
+      "Train and evaluate the DD-HGS ablation rows (3DGS, +SL, +WE, +WE+SL, +Diffusion, full, "
+      "and a spectral-subspace colour model) "
       "with the same preset, seed and iterations; writes DIR/<row>/ runs, DIR/ablation.md and "
       "DIR/ablation.json");
   cmd->add_option("data", args->data, "Dataset folder")->required();

@@ -191,7 +191,7 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
     EXPECT_GT(e["fps"].get<double>(), 0.0);
   }
   EXPECT_EQ(rows, (std::vector<std::string>{"3dgs", "sl", "we", "we+sl", "diffusion", "diffusion",
-                                            "full", "full"}));
+                                            "full", "full", "subspace"}));
   EXPECT_EQ(outputs[4], "render");
   EXPECT_EQ(outputs[5], "ddim2-mean4");  // the default: the mean of 4 samples
   const std::string md = io::read_file(dir / "ablation.md");
@@ -207,6 +207,11 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
   EXPECT_EQ(config("diffusion")["loss"]["diffusion"], 0.3);
   EXPECT_EQ(config("full")["loss"]["spectral"], 0.1);
   EXPECT_EQ(config("full")["wavelength_encoder"]["enabled"], true);
+  EXPECT_EQ(config("3dgs")["model"]["spectral_rank"], 0);
+  EXPECT_EQ(config("subspace")["model"]["spectral_rank"], -1);
+  EXPECT_EQ(config("subspace")["loss"]["spectral"], 0.0);
+  EXPECT_NE(io::read_file(dir / "subspace" / "gaussians.ply").find("comment band_basis"),
+            std::string::npos);
   EXPECT_FALSE(fs::exists(dir / "we+sl" / "denoiser.pt"));
   EXPECT_TRUE(fs::exists(dir / "full" / "denoiser.pt"));
   EXPECT_NE(io::read_file(dir / "3dgs" / "gaussians.ply"),
