@@ -205,9 +205,9 @@ std::vector<AblationRow> select_rows(const std::vector<std::string>& names,
   for (const std::string& name : names) {
     auto it = std::find_if(ablation_rows().begin(), ablation_rows().end(),
                            [&](const AblationRow& r) { return r.name == name; });
-    core::require(
-        it != ablation_rows().end(),
-        where + ": unknown row '" + name + "' (rows: 3dgs, sl, we, we+sl, diffusion, full)");
+    core::require(it != ablation_rows().end(),
+                  where + ": unknown row '" + name +
+                      "' (rows: 3dgs, sl, we, we+sl, diffusion, full, subspace)");
     for (const AblationRow& r : selected)
       core::require(r.name != name, where + ": row '" + name + "' is listed twice");
     selected.push_back(*it);
