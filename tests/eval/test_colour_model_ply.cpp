@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "core/error.h"
+#include "eval/rgb_export.h"
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
 #include "model/gaussians.h"
@@ -62,6 +63,30 @@ TEST(ColourModel, PlyKeepsTheBasisAndRendersTheSame) {
   } catch (const core::Error& e) {
     EXPECT_NE(std::string(e.what()).find("line 1 has 5 numbers; expected 4"), std::string::npos)
         << e.what();
+  }
+}
+
+TEST(ColourModel, ExportMapsALatentModelAsItsPerBandEquivalent) {
+  const model::Gaussians g = latent_scene(21);
+  const std::vector<double> wavelengths = {420, 460, 500, 540, 580, 620, 660, 700, 740};
+  const io::GaussianPly latent = model::to_ply(g, wavelengths);
+  // The same colours with one SH set per band: B c for every coefficient, the
+  // DC shifted by the mean less the per-band model's 0.5.
+  io::GaussianPly per_band = latent;
+  per_band.basis = per_band.mean = torch::Tensor();
+  const Tensor B = latent.basis.to(torch::kFloat64);
+  per_band.sh_dc = ((latent.sh_dc.to(torch::kFloat64) * model::kShC0).matmul(B.t()) +
+                    latent.mean.to(torch::kFloat64) - 0.5) /
+                   model::kShC0;
+  per_band.sh_rest = torch::einsum("nc,gck->gnk", {B, latent.sh_rest.to(torch::kFloat64)});
+  per_band.sh_dc = per_band.sh_dc.to(torch::kFloat32);
+  per_band.sh_rest = per_band.sh_rest.to(torch::kFloat32);
+  for (const eval::ColourMapping& mapping : {eval::cie_mapping(wavelengths, 9, true),
+                                             eval::band_mapping(wavelengths, {460, 580, 700})}) {
+    const io::GaussianPly a = eval::map_colours(latent, mapping);
+    const io::GaussianPly b = eval::map_colours(per_band, mapping);
+    EXPECT_LT(scaled_error(a.sh_dc, b.sh_dc), 1e-5) << mapping.description;
+    EXPECT_LT(scaled_error(a.sh_rest, b.sh_rest), 1e-5) << mapping.description;
   }
 }
 
