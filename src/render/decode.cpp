@@ -31,6 +31,21 @@ Rows rows_of(const torch::Tensor& basis, const torch::Tensor& mean,
   return r;
 }
 
+// sum_j a[j] b[j] in 8 interleaved partial sums, added in a fixed order:
+// the compiler keeps the 8 in one vector register (a plain running sum may
+// not be reordered, so it would stay scalar).
+inline float dot(const float* a, const float* b, int64_t n) {
+  constexpr int kLanes = 8;
+  float lanes[kLanes] = {};
+  int64_t j = 0;
+  for (; j + kLanes <= n; j += kLanes)
+    for (int l = 0; l < kLanes; ++l) lanes[l] += a[j + l] * b[j + l];
+  float sum = 0;
+  for (; j < n; ++j) sum += a[j] * b[j];
+  for (int l = 0; l < kLanes; ++l) sum += lanes[l];
+  return sum;
+}
+
 void forward_kernel(const float* z, const float* alpha, const Rows& r, int64_t P, float* out) {
   const int64_t K = r.K, M = r.M;
   const float* lift = r.row(K);
@@ -90,10 +105,7 @@ class DecodeFunction : public torch::autograd::Function<DecodeFunction> {
         for (int64_t p = chunk * kChunk; p < p_end; ++p) {
           const float* gp = g + p * M;
           for (int64_t k = 0; k <= K; ++k) {  // k == K: the alpha row (m - bg)
-            const float* b = r.row(k);
-            float dot = 0;
-            for (int64_t j = 0; j < M; ++j) dot += gp[j] * b[j];
-            (k < K ? dz[p * K + k] : da[p]) = dot;
+            (k < K ? dz[p * K + k] : da[p]) = dot(gp, r.row(k), M);
           }
           for (int64_t k = 0; k < K; ++k) {
             const float zk = z[p * K + k];
