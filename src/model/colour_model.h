@@ -32,6 +32,9 @@ struct ColourModel {
   int64_t rank() const { return latent() ? basis.size(1) : 0; }  // K; 0 per band
   // Blended channels for a model of N bands: K, or N per band.
   int64_t channels(int64_t bands) const { return latent() ? rank() : bands; }
+  // The factor on the SH learning rates: latent_scale for a latent model
+  // (optim.latent_sh_lr_scale), 1 per band.
+  double sh_rate_scale(double latent_scale) const { return latent() ? latent_scale : 1.0; }
   // Whether SH values are used as they are (render::eval_sh's `linear`).
   bool linear_sh() const { return latent(); }
 

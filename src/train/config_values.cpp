@@ -63,6 +63,7 @@ constexpr Range kRanges[] = {
     {"optim.adam_eps", 0, 1, true},
     {"optim.background_lr", 0, kMaxRate, false},
     {"optim.basis_lr", 0, kMaxRate, false},
+    {"optim.latent_sh_lr_scale", 0, 1e6, false},
     {"loss.l1", 0, kMaxWeight, false},
     {"loss.dssim", 0, kMaxWeight, false},
     {"loss.spectral", 0, kMaxWeight, false},

@@ -76,6 +76,7 @@ OptimConfig parse_optim(const json& o, const std::string& source) {
   c.adam_eps = read<double>(o, "optim", "adam_eps", source);
   c.background_lr = read<double>(o, "optim", "background_lr", source);
   c.basis_lr = read<double>(o, "optim", "basis_lr", source);
+  c.latent_sh_lr_scale = read<double>(o, "optim", "latent_sh_lr_scale", source);
   return c;
 }
 

@@ -50,6 +50,8 @@ struct OptimConfig {
   double sh_dc_lr = 0;
   double sh_rest_lr_divisor = 1;  // sh_rest learns at sh_dc_lr / this
   double basis_lr = 0;            // a latent colour model's basis and mean
+  // A latent colour model's SH learn at this times the rates above.
+  double latent_sh_lr_scale = 1;
   double opacity_lr = 0, scaling_lr = 0, rotation_lr = 0;
   double adam_eps = 1e-15;
   double background_lr = 0;

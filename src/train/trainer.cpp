@@ -181,8 +181,9 @@ void Trainer::set_learning_rates(int64_t iteration) {
   state_.adam.group("log_scales").lr = o.scaling_lr;
   state_.adam.group("quats").lr = o.rotation_lr;
   state_.adam.group("logit_opacities").lr = o.opacity_lr;
-  state_.adam.group("sh_dc").lr = o.sh_dc_lr;
-  state_.adam.group("sh_rest").lr = o.sh_dc_lr / o.sh_rest_lr_divisor;
+  const double sh_lr = o.sh_dc_lr * state_.gaussians.colour.sh_rate_scale(o.latent_sh_lr_scale);
+  state_.adam.group("sh_dc").lr = sh_lr;
+  state_.adam.group("sh_rest").lr = sh_lr / o.sh_rest_lr_divisor;
   if (camera_refinement_)
     state_.adam.group("camera_refinement/translation").lr =
         config_.camera_refinement.translation_lr;
