@@ -9,6 +9,7 @@
 
 #include "app/registry.h"
 #include "core/error.h"
+#include "core/log.h"
 #include "core/spectral_pca.h"
 #include "core/tensor_values.h"
 #include "io/scene/backdrop.h"
@@ -65,9 +66,7 @@ std::string spacing_line(const io::ViewSpacing& s) {
 }
 
 std::string nm(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
+  return core::format_g(v);
 }
 
 // The border of the training views, read only when every view's header

@@ -5,14 +5,13 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "core/log.h"
 
 namespace ddhgs::core {
 namespace {
 
 std::string nm(double value) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g nm", value);
-  return text;
+  return format_g(value) + " nm";
 }
 
 double parse_number(const std::string& word, const std::string& option) {
@@ -74,33 +73,25 @@ torch::Tensor interpolation_map(const std::vector<double>& from_nm,
 }
 
 std::vector<double> parse_wavelength_list(const std::string& text, const std::string& option) {
+  const bool range = text.find(':') != std::string::npos;
+  // Every item between separators, each a number.
+  std::vector<double> items;
+  for (size_t at = 0;;) {
+    const size_t end = text.find(range ? ':' : ',', at);
+    items.push_back(parse_number(text.substr(at, end - at), option));
+    if (end == std::string::npos) break;
+    at = end + 1;
+  }
+  if (!range) return items;
+  if (items.size() != 3)
+    throw Error(option + ": '" + text + "' must be START:STOP:STEP (nm), e.g. 450:950:5");
+  const double start = items[0], stop = items[1], step = items[2];
+  if (!(step > 0) || stop < start)
+    throw Error(option + ": '" + text + "' needs STOP >= START and a positive STEP");
+  const double count = std::floor((stop - start) / step + 1e-9) + 1;
+  if (count > 100000) throw Error(option + ": '" + text + "' asks for over 100,000 wavelengths");
   std::vector<double> out;
-  if (text.find(':') != std::string::npos) {
-    std::vector<double> parts;
-    size_t at = 0;
-    for (;;) {
-      const size_t colon = text.find(':', at);
-      parts.push_back(parse_number(text.substr(at, colon - at), option));
-      if (colon == std::string::npos) break;
-      at = colon + 1;
-    }
-    if (parts.size() != 3)
-      throw Error(option + ": '" + text + "' must be START:STOP:STEP (nm), e.g. 450:950:5");
-    const double start = parts[0], stop = parts[1], step = parts[2];
-    if (!(step > 0) || stop < start)
-      throw Error(option + ": '" + text + "' needs STOP >= START and a positive STEP");
-    const double count = std::floor((stop - start) / step + 1e-9) + 1;
-    if (count > 100000) throw Error(option + ": '" + text + "' asks for over 100,000 wavelengths");
-    for (int64_t i = 0; i < int64_t(count); ++i) out.push_back(start + double(i) * step);
-    return out;
-  }
-  size_t at = 0;
-  for (;;) {
-    const size_t comma = text.find(',', at);
-    out.push_back(parse_number(text.substr(at, comma - at), option));
-    if (comma == std::string::npos) break;
-    at = comma + 1;
-  }
+  for (int64_t i = 0; i < int64_t(count); ++i) out.push_back(start + double(i) * step);
   return out;
 }
 

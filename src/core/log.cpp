@@ -28,6 +28,12 @@ void log_debug(const std::string& message) {
   if (g_level >= LogLevel::Verbose) std::cerr << message << "\n";
 }
 
+std::string format_g(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", value);
+  return text;
+}
+
 std::string format_duration(double seconds) {
   char buf[32];
   if (seconds < 60) {

@@ -43,6 +43,9 @@ class ProgressBar {
   std::chrono::steady_clock::time_point last_draw_;
 };
 
+// A number as printf's %g writes it: "0.1", "1082.5", "1e+06".
+std::string format_g(double value);
+
 // "1h02m", "3m05s", "12.3s".
 std::string format_duration(double seconds);
 

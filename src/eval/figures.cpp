@@ -5,14 +5,13 @@
 
 #include "core/colour.h"
 #include "core/error.h"
+#include "core/log.h"
 
 namespace ddhgs::eval {
 namespace {
 
 std::string trimmed_number(double value) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", value);
-  return buf;
+  return core::format_g(value);
 }
 
 torch::Tensor pad_width(const torch::Tensor& picture, int64_t width) {

@@ -16,9 +16,7 @@ namespace {
 constexpr int64_t kColourBarPx = 12;  // height of the error colour bar
 
 std::string number_label(double value) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", value);
-  return buf;
+  return core::format_g(value);
 }
 
 }  // namespace

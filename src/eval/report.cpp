@@ -51,9 +51,7 @@ struct TruthMetrics {
 
 // Shortest exact-enough text of a number, e.g. 0.1 or 1082.5.
 std::string number(double value) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", value);
-  return buf;
+  return core::format_g(value);
 }
 
 // File-name-safe form of a view's stem.

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "core/log.h"
 #include "eval/colormap.h"
 #include "io/files/atomic_file.h"
 #include "io/image/image.h"
@@ -19,9 +20,7 @@ constexpr int64_t kColourBarPx = 8;
 constexpr double kPaperRangesNm[][2] = {{400, 418}, {750, 768}, {1082, 1100}};
 
 std::string nm(double value) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", std::round(value * 10) / 10);
-  return buf;
+  return core::format_g(std::round(value * 10) / 10);
 }
 
 }  // namespace

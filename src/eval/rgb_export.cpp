@@ -7,6 +7,7 @@
 
 #include "core/colour.h"
 #include "core/error.h"
+#include "core/log.h"
 #include "model/gaussians.h"
 
 namespace ddhgs::eval {
@@ -54,9 +55,7 @@ torch::Tensor selection_map(int64_t bands, const std::vector<int64_t>& rows) {
 }
 
 std::string nm_text(double wavelength_nm) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g nm", wavelength_nm);
-  return buf;
+  return core::format_g(wavelength_nm) + " nm";
 }
 
 }  // namespace

@@ -6,33 +6,14 @@
 #include "eval/rgb_export.h"
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
+#include "model/colour_fixtures.h"
 #include "model/gaussians.h"
-#include "render/render_fixture.h"
 #include "support/test_support.h"
 
 namespace ddhgs::test {
 namespace {
 
 using torch::Tensor;
-
-constexpr int kWidth = 40, kHeight = 30;
-
-// A latent model of 9 bands and 3 channels (SH degree 1) from the
-// rasterizer's random scene, with a random basis and mean.
-model::Gaussians latent_scene(int seed) {
-  const SplatScene s = random_scene(seed, 50, 3, kWidth, kHeight);
-  model::Gaussians g;
-  g.means = s.means;
-  g.log_scales = s.log_scales;
-  g.quats = s.quats;
-  g.logit_opacities = s.logit_opacities;
-  g.sh_dc = (s.colors / model::kShC0).contiguous();
-  g.sh_rest = (torch::randn({50, 3, 3}) * 0.05).contiguous();
-  g.active_sh_degree = 1;
-  g.colour.basis = torch::randn({9, 3}) * 0.5;
-  g.colour.mean = torch::rand({9});
-  return g;
-}
 
 TEST(ColourModel, PlyKeepsTheBasisAndRendersTheSame) {
   const core::Camera camera = test_core_camera(kWidth, kHeight);

@@ -4,34 +4,16 @@
 #include <gtest/gtest.h>
 
 #include "core/band_map.h"
+#include "model/colour_fixtures.h"
 #include "model/colour_model.h"
 #include "model/gaussians.h"
 #include "render/reference.h"
-#include "render/render_fixture.h"
 #include "render/sh_reference.h"
 
 namespace ddhgs::test {
 namespace {
 
 using torch::Tensor;
-
-constexpr int kWidth = 40, kHeight = 30;
-
-// Gaussians from the rasterizer's random scene with SH of degree 1 over
-// `channels` channels: small view-dependent terms on colours in [0, 1], so a
-// per-band model never clamps.
-model::Gaussians scene_gaussians(int seed, int g, int channels) {
-  const SplatScene s = random_scene(seed, g, channels, kWidth, kHeight);
-  model::Gaussians gaussians;
-  gaussians.means = s.means;
-  gaussians.log_scales = s.log_scales;
-  gaussians.quats = s.quats;
-  gaussians.logit_opacities = s.logit_opacities;
-  gaussians.sh_dc = ((s.colors * 0.8 + 0.1 - 0.5) / model::kShC0).contiguous();
-  gaussians.sh_rest = (torch::randn({g, channels, 3}) * 0.05).contiguous();
-  gaussians.active_sh_degree = 1;
-  return gaussians;
-}
 
 Tensor centre_of(const core::Camera& camera, torch::ScalarType dtype) {
   const core::Vec3 c = camera.center();
@@ -80,14 +62,6 @@ TEST(ColourModel, FullRankIdentityBasisRendersAsThePerBandModel) {
           .alpha.max()
           .item<double>(),
       0.99);
-}
-
-// A latent model of 9 bands and 3 channels with a random basis and mean.
-model::Gaussians latent_scene(int seed) {
-  model::Gaussians g = scene_gaussians(seed, 50, 3);
-  g.colour.basis = torch::randn({9, 3}) * 0.5;
-  g.colour.mean = torch::rand({9});
-  return g;
 }
 
 TEST(ColourModel, DecodingAfterBlendingEqualsBlendingDecodedColours) {
