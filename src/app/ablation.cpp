@@ -228,6 +228,8 @@ json row_config(const AblationOptions& options, const AblationRow& row) {
                  source);
   train::set_key(config, "loss.diffusion", weight(row.diffusion, options.diffusion_weight), source);
   train::set_key(config, "model.spectral_rank", std::to_string(row.spectral_rank), source);
+  // The subspace row is a subspace at any band count; the paper's rows are per band.
+  train::set_key(config, "model.subspace_from_bands", "0", source);
   std::error_code ec;
   config["data"]["path"] = fs::absolute(options.data, ec).lexically_normal().string();
   train::validate_config(config, source);

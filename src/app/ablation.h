@@ -49,7 +49,8 @@ struct AblationOptions {
 
 // The resolved config of one row: preset, then assignments, then the row's
 // switches (loss.spectral, wavelength_encoder.enabled, loss.diffusion,
-// model.spectral_rank).
+// model.spectral_rank; model.subspace_from_bands 0, so that a row's
+// colour model does not depend on the scene's band count).
 nlohmann::json row_config(const AblationOptions& options, const AblationRow& row);
 
 // Trains (or resumes, or reuses when DIR/<row> already holds a finished run

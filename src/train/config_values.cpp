@@ -43,6 +43,7 @@ constexpr Range kRanges[] = {
     {"data.cache_mb", 0, kMaxMiB, false, true},
     {"model.sh_degree", 0, 3, false, true},
     {"model.spectral_rank", -1, 4096, false, true},
+    {"model.subspace_from_bands", 0, 100000, false, true},
     // Fractions of the run for intervals may pass 1 (decay over a longer run
     // than this one, never reset): only their sign is nonsense.
     {"model.sh_degree_every_fraction", 0, 1e6, false},
@@ -109,6 +110,7 @@ constexpr Range kRanges[] = {
     {"densify.max_gaussians", 0, 1e9, false, true},
     {"output.log_every", 0, kMaxCount, false, true},
     {"output.checkpoint_every", 0, kMaxCount, false, true},
+    {"output.test_every", 0, kMaxCount, false, true},
 };
 
 const json* find_key(const json& config, const std::string& dotted) {

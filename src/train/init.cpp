@@ -226,9 +226,16 @@ std::string percent(double share) {
 }
 }  // namespace
 
-model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank) {
-  if (spectral_rank == 0) return {};
+model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank,
+                                        int subspace_from_bands) {
   const int64_t n = scene.bands();
+  if (spectral_rank < 0 && n < subspace_from_bands) {
+    core::log_info("colour model: one SH set per band (" + std::to_string(n) +
+                   " bands, below model.subspace_from_bands " +
+                   std::to_string(subspace_from_bands) + ")");
+    return {};
+  }
+  if (spectral_rank == 0) return {};
   if (spectral_rank > n)
     throw core::Error(scene.root, "model.spectral_rank " + std::to_string(spectral_rank) +
                                       " is above the scene's " + std::to_string(n) +

@@ -35,10 +35,12 @@ model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions&
 
 // The colour model model.spectral_rank asks for: per band for 0; else a
 // latent one of that rank (-1: the scene's whitened signal rank,
-// core::whitened_signal_rank) from the PCA of up to 8 training views'
-// pixels (io::sample_spectra). Throws naming the scene when the rank is
-// above its band count.
-model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank);
+// core::whitened_signal_rank, when the scene has at least
+// subspace_from_bands bands, else per band) from the PCA of up to 8
+// training views' pixels (io::sample_spectra). Throws naming the scene when
+// the rank is above its band count.
+model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank,
+                                        int subspace_from_bands = 0);
 
 // 3DGS's scene extent: 1.1 x the largest distance of a camera centre from
 // their mean (scene units). Scales position learning rates and densification.

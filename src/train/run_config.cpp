@@ -40,6 +40,7 @@ ModelConfig parse_model(const json& m, const std::string& source) {
   ModelConfig c;
   c.sh_degree = read<int>(m, "model", "sh_degree", source);
   c.spectral_rank = read<int>(m, "model", "spectral_rank", source);
+  c.subspace_from_bands = read<int>(m, "model", "subspace_from_bands", source);
   c.sh_degree_every_fraction = read<double>(m, "model", "sh_degree_every_fraction", source);
   const json& b = m.at("background");
   c.background_per_band = !b.is_number();
@@ -170,6 +171,7 @@ OutputConfig parse_output(const json& o, const std::string& source) {
   OutputConfig c;
   c.log_every = read<int64_t>(o, "output", "log_every", source);
   c.checkpoint_every = read<int64_t>(o, "output", "checkpoint_every", source);
+  c.test_every = read<int64_t>(o, "output", "test_every", source);
   return c;
 }
 

@@ -33,8 +33,10 @@ struct ModelConfig {
   int sh_degree = 3;
   // The colour model (model/colour_model.h): 0 one SH set per band; K > 0 SH
   // over K latent channels and a band basis (at most the band count); -1 the
-  // scene's own signal rank (core::whitened_signal_rank of its views).
+  // scene's own signal rank (core::whitened_signal_rank of its views) when
+  // it has at least subspace_from_bands bands, else per band.
   int spectral_rank = 0;
+  int subspace_from_bands = 0;
   double sh_degree_every_fraction = 0;  // of iterations (train/schedule.h)
   // One value for every band (background_per_band false, one element), or
   // one per band (checked against the scene's band count: background()).
@@ -84,6 +86,9 @@ struct DensifyConfig {
 struct OutputConfig {
   int64_t log_every = 10;  // iterations between metrics.jsonl records
   int64_t checkpoint_every = 5000;
+  // Iterations between test-view PSNR records in metrics.jsonl (0: none);
+  // their time is left out of the records' "seconds".
+  int64_t test_every = 1000;
 };
 
 struct RunConfig {

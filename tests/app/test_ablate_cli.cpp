@@ -209,6 +209,7 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
   EXPECT_EQ(config("full")["wavelength_encoder"]["enabled"], true);
   EXPECT_EQ(config("3dgs")["model"]["spectral_rank"], 0);
   EXPECT_EQ(config("subspace")["model"]["spectral_rank"], -1);
+  EXPECT_EQ(config("subspace")["model"]["subspace_from_bands"], 0);  // a subspace at 8 bands too
   EXPECT_EQ(config("subspace")["loss"]["spectral"], 0.0);
   EXPECT_NE(io::read_file(dir / "subspace" / "gaussians.ply").find("comment band_basis"),
             std::string::npos);

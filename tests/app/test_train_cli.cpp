@@ -21,7 +21,7 @@ const std::string kSchedule =
     " --preset demo --set densify.from_fraction=0.15 --set densify.every=30"
     " --set densify.until_fraction=0.85 --set densify.opacity_reset_every_fraction=0.5"
     " --set model.sh_degree_every_fraction=0.3 --set optim.means_lr_decay_fraction=1"
-    " --checkpoint-every 100";
+    " --checkpoint-every 100 --set output.test_every=50";  // test records must not disturb resume
 
 const fs::path& scene() {
   static const fs::path dir = [] {
@@ -215,6 +215,33 @@ TEST(TrainCli, LatentColourModelTrainsResumesAndItsPlyRendersAsTrained) {
   EXPECT_NE(out.find("model.spectral_rank 9 is above the scene's 8 bands"), std::string::npos)
       << out;
   EXPECT_FALSE(fs::exists(runs / "nine"));
+}
+
+// The default (model.spectral_rank -1) is a subspace at the scene's signal
+// rank from model.subspace_from_bands bands on, per band below.
+TEST(TrainCli, DefaultColourModelFollowsTheBandCount) {
+  fs::path runs = test::temp_dir("train_cli_auto_rank");
+  std::string out;
+  ASSERT_EQ(train(scene().string() + " --out " + (runs / "eight").string() + " --iterations 10" +
+                      kSchedule,
+                  &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("one SH set per band (8 bands, below model.subspace_from_bands 16)"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(read_json(runs / "eight" / "train_summary.json")["colour_channels"], 8);
+  ASSERT_EQ(train(scene().string() + " --out " + (runs / "from8").string() +
+                      " --iterations 10 --set model.subspace_from_bands=8" + kSchedule,
+                  &out),
+            0)
+      << out;
+  const int64_t k = read_json(runs / "from8" / "train_summary.json")["colour_channels"];
+  EXPECT_GE(k, 1);
+  EXPECT_LT(k, 8);
+  EXPECT_NE(out.find("colour model: " + std::to_string(k) + " latent channels for 8 bands"),
+            std::string::npos)
+      << out;
 }
 
 TEST(TrainCli, TrainsOnEverySecondBandAndEvalMeasuresTheOthers) {
