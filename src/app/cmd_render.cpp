@@ -36,6 +36,7 @@ struct RenderArgs {
   std::string data;
   std::string wavelengths;
   std::string response;
+  std::string index;
   int64_t denoise = 0;
   bool ddpm = false;
   SamplerFlags sampler;
@@ -68,8 +69,10 @@ Action setup(CLI::App& parent) {
   cmd->add_flag("--diff", args->diff,
                 "For views with ground truth, also an error heatmap and a truth | render | error "
                 "comparison");
-  cmd->add_option("--diff-max", args->diff_max,
-                  "Absolute error (reflectance) at the top of the heatmap scale")
+  cmd->add_option(
+         "--diff-max", args->diff_max,
+         "Absolute error (reflectance; index units with --index) at the top of the heatmap "
+         "scale")
       ->check(within(1e-12, 1e12))
       ->capture_default_str();
   cmd->add_option("--data", args->data, "Dataset folder, if it moved since training");
@@ -81,6 +84,14 @@ Action setup(CLI::App& parent) {
                   "Render what another sensor sees: a CSV of spectral response functions "
                   "(wavelength_nm, one column per channel; examples/responses/)")
       ->excludes(wavelengths);
+  cmd->add_option("--index", args->index,
+                  "A vegetation index map instead of band pictures: ndvi, ndre or gndvi (bands "
+                  "averaged over MicaSense RedEdge-MX's windows; -1 red to 1 green, colour bar "
+                  "below; with --diff also against the views' own index)")
+      ->excludes(wavelengths)
+      ->excludes(bands)
+      ->excludes("--band")
+      ->excludes("--response");
   auto* denoise = cmd->add_option(
       "--denoise", args->denoise,
       "Denoise every render with the run's diffusion denoiser, DDIM with this many steps");
@@ -135,6 +146,18 @@ Action setup(CLI::App& parent) {
       options.band_map = map.map.index_select(0, torch::tensor(rows));
       core::log_info("channels of the rendered cubes, by centre wavelength: " + listed);
       folder_suffix = "_" + fs::path(args->response).stem().string();
+    }
+    if (!args->index.empty()) {
+      options.index = eval::find_vegetation_index(args->index, "--index");
+      core::require(options.format != eval::OutputFormat::Envi,
+                    "--index: an index map is written as PNG and, with --format npy, as .npy; "
+                    "not as ENVI");
+      try {
+        eval::index_band_map(*options.index, scene.wavelengths_nm);  // its bands exist
+      } catch (const core::Error& e) {
+        throw core::Error(std::string("--index ") + e.what());
+      }
+      folder_suffix = "_" + args->index;
     }
     const std::vector<double>& shown =
         options.band_map.defined() ? options.wavelengths_nm : scene.wavelengths_nm;

@@ -26,6 +26,27 @@ double anchor_position(int i) {
   return i == kViridisAnchors - 1 ? 255.0 : 16.0 * i;
 }
 
+// ColorBrewer's 11-class RdYlGn (Cynthia Brewer, Apache 2.0), evenly spaced
+// from 0 to 1; interpolated linearly between them.
+constexpr int kRdYlGnAnchors = 11;
+constexpr unsigned kRdYlGn[kRdYlGnAnchors] = {0xa50026, 0xd73027, 0xf46d43, 0xfdae61,
+                                              0xfee08b, 0xffffbf, 0xd9ef8b, 0xa6d96a,
+                                              0x66bd63, 0x1a9850, 0x006837};
+
+std::array<double, 3> rdylgn(double v) {
+  const double position = v * (kRdYlGnAnchors - 1);
+  const int i = std::min(int(position), kRdYlGnAnchors - 2);
+  const double t = position - i;
+  std::array<double, 3> rgb{};
+  for (int c = 0; c < 3; ++c) {
+    const int shift = 16 - 8 * c;
+    const double a = double((kRdYlGn[i] >> shift) & 0xff) / 255;
+    const double b = double((kRdYlGn[i + 1] >> shift) & 0xff) / 255;
+    rgb[size_t(c)] = a + t * (b - a);
+  }
+  return rgb;
+}
+
 }  // namespace
 
 Colormap parse_colormap(const std::string& name) {
@@ -37,6 +58,7 @@ Colormap parse_colormap(const std::string& name) {
 std::array<double, 3> colormap_rgb(Colormap map, double value) {
   double v = std::clamp(value, 0.0, 1.0);
   if (map == Colormap::Gray) return {v, v, v};
+  if (map == Colormap::RdYlGn) return rdylgn(v);
   double position = v * 255.0;
   int i = 0;
   while (i + 2 < kViridisAnchors && anchor_position(i + 1) <= position) ++i;

@@ -10,9 +10,11 @@ namespace ddhgs::eval {
 enum class Colormap {
   Gray,     // black to white
   Viridis,  // perceptually uniform, colour-blind friendly (matplotlib's default)
+  RdYlGn,   // diverging red - yellow - green: vegetation indices, -1 at 0 and 1 at 1
 };
 
-// "gray" / "grey" / "viridis"; core::Error naming the option otherwise.
+// "gray" / "grey" / "viridis" (the --colormap choices); core::Error naming the
+// option otherwise. RdYlGn is for vegetation indices only.
 Colormap parse_colormap(const std::string& name);
 
 // Colour of a value in [0, 1] (clamped) as linear-interpolated display RGB in [0, 1].

@@ -1,11 +1,15 @@
 #include "eval/render_frames.h"
 
+#include <cmath>
 #include <cstdio>
+
+#include <nlohmann/json.hpp>
 
 #include "core/error.h"
 #include "core/log.h"
 #include "eval/orbit.h"
 #include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
 #include "io/image/image.h"
 
 namespace ddhgs::eval {
@@ -17,6 +21,86 @@ constexpr int64_t kColourBarPx = 12;  // height of the error colour bar
 
 std::string number_label(double value) {
   return core::format_g(value);
+}
+
+// Mean of the finite values; NaN when there is none.
+double finite_mean(const torch::Tensor& values) {
+  const torch::Tensor finite = values.isfinite();
+  const int64_t count = finite.sum().item<int64_t>();
+  if (count == 0) return NAN;
+  return torch::where(finite, values, torch::zeros_like(values)).sum().item<double>() /
+         double(count);
+}
+
+nlohmann::json number_or_null(double value) {
+  return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json();
+}
+
+// The --index branch of render_frames.
+int render_index_frames(const io::Scene& scene, const model::Gaussians& model,
+                        const torch::Tensor& background, const std::vector<Frame>& frames,
+                        const RenderOptions& options, const fs::path& out_dir) {
+  const VegetationIndex& index = *options.index;
+  const torch::Tensor map = index_band_map(index, scene.wavelengths_nm);  // [2, N]
+  const std::string& label = index.name;
+  nlohmann::json summary = {{"index", label},
+                            {"a", index.a.name},
+                            {"b", index.b.name},
+                            {"frames", nlohmann::json::array()}};
+  int written = 0;
+  double error_sum = 0;
+  int64_t compared = 0;
+  core::ProgressBar bar("render", int64_t(frames.size()));
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const Frame& frame = frames[i];
+    const fs::path stem = out_dir / frame.name;
+    torch::Tensor image = model::render_gaussians(model, frame.camera, background).image;
+    if (options.transform) image = options.transform(image);
+    const torch::Tensor values = index_values(image, map);  // [H, W]
+    const torch::Tensor shown = index_picture(values);
+    const torch::Tensor bar_picture = index_picture(
+        torch::linspace(-1, 1, values.size(1)).unsqueeze(0).expand({kColourBarPx, values.size(1)}));
+    io::write_png(stem.string() + "_" + label + ".png", stacked(shown, bar_picture));
+    ++written;
+    if (options.format != OutputFormat::Png) {
+      io::write_npy(stem.string() + "_" + label + ".npy", values);
+      ++written;
+    }
+    nlohmann::json record = {{"name", frame.name}, {"mean", number_or_null(finite_mean(values))}};
+    if (options.diff && frame.view >= 0) {
+      const torch::Tensor truth = index_values(
+          scene.has_clean() ? scene.clean_image(frame.view) : scene.image(frame.view), map);
+      const torch::Tensor error = (values - truth).abs();  // NaN where either has no signal
+      const double mae = finite_mean(error);
+      record["truth_mean"] = number_or_null(finite_mean(truth));
+      record["mean_absolute_error"] = number_or_null(mae);
+      if (std::isfinite(mae)) {
+        error_sum += mae;
+        ++compared;
+      }
+      const torch::Tensor heat = apply_colormap(
+          torch::where(error.isfinite(), error / options.diff_max, torch::zeros_like(error)),
+          options.colormap);
+      io::write_png(
+          stem.string() + "_" + label + "_compare.png",
+          comparison_panels(index_picture(truth), shown, heat, options.colormap, kColourBarPx));
+      ++written;
+    }
+    summary["frames"].push_back(record);
+    bar.update(int64_t(i + 1));
+  }
+  if (compared > 0) {
+    summary["mean_absolute_error"] = error_sum / double(compared);
+    summary["truth"] = scene.has_clean() ? "clean" : "captured";
+    core::log_info(label + ": mean absolute error against the " +
+                   summary["truth"].get<std::string>() + " views' own " + label + " " +
+                   core::format_g(error_sum / double(compared)) + " over " +
+                   std::to_string(compared) + " frame(s)");
+  }
+  io::write_file_atomically(out_dir / (label + ".json"), summary.dump(2) + "\n");
+  ++written;
+  bar.finish(std::to_string(written) + " files");
+  return written;
 }
 
 }  // namespace
@@ -57,6 +141,7 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
   const bool mapped = options.band_map.defined();
   const std::vector<double>& wavelengths = mapped ? options.wavelengths_nm : scene.wavelengths_nm;
   model::Gaussians model = gaussians;  // handles to the same tensors
+  if (options.index) return render_index_frames(scene, model, background, frames, options, out_dir);
   if (mapped) model.colour = gaussians.colour.mapped(options.band_map);
   const std::string label = options.bands.label;
   int written = 0;

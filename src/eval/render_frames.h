@@ -5,11 +5,13 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/camera.h"
 #include "eval/figures.h"
+#include "eval/vegetation_index.h"
 #include "io/scene/scene.h"
 #include "model/gaussians.h"
 
@@ -45,6 +47,9 @@ struct RenderOptions {
   // the N bands.
   torch::Tensor band_map;
   std::vector<double> wavelengths_nm;
+  // A vegetation index (eval/vegetation_index.h) in place of band pictures:
+  // its map per frame, and with diff its error (diff_max at the top).
+  std::optional<VegetationIndex> index;
 };
 
 // Frames for the views of a split, named by their file stems.
@@ -57,6 +62,12 @@ std::vector<Frame> orbit_frames(const io::Scene& scene, int count);
 //   NAME_LABEL.png                      picture (LABEL: rgb, band42, 750-768nm)
 //   NAME_LABEL_diff_max0.1.png          error heatmap (diff, frames with truth)
 //   NAME_LABEL_compare.png              truth | render | error (diff, frames with truth)
+// With an index, instead (LABEL: ndvi):
+//   NAME_LABEL.png                      the index, -1 to 1 through RdYlGn, colour bar below
+//   NAME_LABEL.npy                      float32 [H, W], NaN without signal (npy format)
+//   NAME_LABEL_compare.png              truth | render | |error| (diff, frames with truth)
+//   LABEL.json                          per frame: mean index, and the mean absolute
+//                                       error against the truth's index (diff)
 // Ground truth is the clean view when the scene has one, else the stored view.
 // Returns the number of files written. The caller makes them appear together
 // (io::write_into_folder_atomically).

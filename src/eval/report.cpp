@@ -68,11 +68,21 @@ json null_or(const json& record, const char* key) {
 
 json training_curves(const std::vector<json>& log) {
   json curves = json::object();
-  for (const char* key : {"iter", "loss", "train_psnr", "num_gaussians"}) {
+  for (const char* key : {"iter", "seconds", "loss", "train_psnr", "num_gaussians"}) {
     curves[key] = json::array();
     for (const json& record : log)
       if (record.contains("iter")) curves[key].push_back(null_or(record, key));
   }
+  // Test-view PSNR against training time (output.test_every), its own points.
+  json test = {
+      {"minutes", json::array()}, {"test_psnr", json::array()}, {"test_psnr_clean", json::array()}};
+  for (const json& record : log) {
+    if (!record.contains("test_psnr") || !record.contains("seconds")) continue;
+    test["minutes"].push_back(record.at("seconds").get<double>() / 60);
+    test["test_psnr"].push_back(record.at("test_psnr"));
+    test["test_psnr_clean"].push_back(null_or(record, "test_psnr_clean"));
+  }
+  curves["test"] = test;
   return curves;
 }
 
@@ -305,6 +315,7 @@ json report_data(const io::Scene& scene, const model::Gaussians& gaussians,
                             number(options.diff_max) + " reflectance)"}}},
           {"viewer", {{"views", results.viewer_views}, {"sources", quality["sources"]}}},
           {"viridis", viridis_lut()},
+          {"rdylgn", colormap_lut(Colormap::RdYlGn)},
           {"diff_max", options.diff_max},
           {"data_summary", data_summary(scene, gaussians)},
           {"train_summary", records.train_summary},

@@ -1,6 +1,7 @@
 #include "eval/report_splats.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -9,6 +10,7 @@
 #include "core/tensor_values.h"
 #include "eval/report_views.h"
 #include "eval/rgb_export.h"
+#include "eval/vegetation_index.h"
 
 namespace ddhgs::eval {
 namespace {
@@ -67,6 +69,28 @@ json rgb_weights(const std::vector<double>& wavelengths_nm, int64_t bands) {
   return {{"weights", weights},
           {"srgb_curve", mapping.curve == ColourMapping::Curve::Srgb},
           {"title", mapping.description}};
+}
+
+// The vegetation indices the bands cover (eval/vegetation_index.h): their
+// two broad bands as weights over the bands; the page computes (a - b) / (a + b).
+json index_weights(const std::vector<double>& wavelengths_nm) {
+  json out = json::array();
+  for (const VegetationIndex& index : vegetation_indices()) {
+    torch::Tensor map;
+    try {
+      map = index_band_map(index, wavelengths_nm);
+    } catch (const core::Error&) {
+      continue;  // a band outside the sensor's range
+    }
+    std::string upper = index.name;
+    for (char& c : upper) c = char(std::toupper(static_cast<unsigned char>(c)));
+    out.push_back({{"name", index.name},
+                   {"title", upper + ": (" + index.a.name + " - " + index.b.name + ") / (" +
+                                 index.a.name + " + " + index.b.name + "), -1 red to 1 green"},
+                   {"a", core::to_doubles(map[0])},
+                   {"b", core::to_doubles(map[1])}});
+  }
+  return out;
 }
 
 }  // namespace
@@ -142,6 +166,7 @@ nlohmann::json splat_view_data(const model::Gaussians& gaussians, const io::Scen
         {"rmse", basis.rmse},
         {"coefficients", tensor_base64(basis.coefficients)}}},
       {"pseudo_rgb", rgb_weights(scene.wavelengths_nm, scene.bands())},
+      {"indices", index_weights(scene.wavelengths_nm)},
       {"background", core::to_doubles(background)},
       {"cameras", cameras},
       {"start", camera_json(scene.views[size_t(start_view)].camera)},

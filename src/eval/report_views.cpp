@@ -136,9 +136,13 @@ std::string png_data_uri(const torch::Tensor& image, const fs::path& scratch) {
 }
 
 nlohmann::json viridis_lut() {
+  return colormap_lut(Colormap::Viridis);
+}
+
+nlohmann::json colormap_lut(Colormap map) {
   nlohmann::json lut = nlohmann::json::array();
   for (int i = 0; i < 256; ++i) {
-    auto rgb = colormap_rgb(Colormap::Viridis, i / 255.0);
+    auto rgb = colormap_rgb(map, i / 255.0);
     lut.push_back({int(std::lround(255 * rgb[0])), int(std::lround(255 * rgb[1])),
                    int(std::lround(255 * rgb[2]))});
   }

@@ -49,5 +49,7 @@ std::string png_data_uri(const torch::Tensor& image,  // uint8 [H, W] or [H, W, 
 
 // 256 viridis colours as [[r, g, b], ...] in 0..255, for the page's heatmaps.
 nlohmann::json viridis_lut();
+// The same for any colour map (RdYlGn for the 3D view's vegetation indices).
+nlohmann::json colormap_lut(Colormap map);
 
 }  // namespace ddhgs::eval

@@ -5,7 +5,9 @@ with real input events and from the page:
 
   - the 3D view draws the model (pixels differ from its background), a band
     chosen with its wavelength slider recolours it, and a click on the model
-    plots the spectrum of the Gaussians under the cursor;
+    plots the spectrum of the Gaussians under the cursor; halfway between two
+    bands the slider shows their interpolation (an uncaptured wavelength);
+    NDVI recolours it;
   - in the spectral viewer, the slider changes the band image and a click on
     a pixel plots its spectra;
   - the console stays free of errors.
@@ -111,7 +113,10 @@ class DevTools:
             if self.evaluate(expression):
                 return
             time.sleep(0.1)
-        raise RuntimeError("timed out waiting for " + what)
+        # The page's own errors usually say why.
+        errors = console_errors(self.events)
+        raise RuntimeError("timed out waiting for " + what +
+                           ("; console: " + json.dumps(errors) if errors else ""))
 
     def click(self, x, y):
         for kind in ("mousePressed", "mouseReleased"):
@@ -170,7 +175,11 @@ def wait_frames(dt, count):
 def check_splat_view(dt, screenshot):
     """The 3D view: drawn, recoloured by the slider, a spectrum on click."""
     checks = {}
-    dt.wait_for("window.ddhgsSplats && window.ddhgsSplats.ready", "the 3D view")
+    try:
+        dt.wait_for("window.ddhgsSplats && window.ddhgsSplats.ready", "the 3D view")
+    except RuntimeError as e:  # the page says why in its note
+        raise RuntimeError("%s; its note: %s" % (e, dt.evaluate(
+            "document.getElementById('splat-note').textContent")))
     # Without the camera frustums, every pixel that differs is the model's.
     dt.evaluate("document.getElementById('splat-cameras').checked = false")
     dt.evaluate("document.getElementById('sec-3d').scrollIntoView({block: 'start'})")
@@ -198,6 +207,33 @@ def check_splat_view(dt, screenshot):
     checks["splat_label"] = dt.evaluate("document.getElementById('splat-label').textContent")
     checks["splat_recoloured"] = before["url"] != band_mid["url"] and band_mid["url"] != band_low["url"]
 
+    # The slider is continuous in wavelength: halfway between bands 1 and 2
+    # the view is their interpolation, unlike either band.
+    def at_nm(expression):
+        dt.evaluate("(() => { const s = document.getElementById('splat-band'); s.value = String(%s);"
+                    " s.dispatchEvent(new Event('input')); })()" % expression)
+        wait_frames(dt, 3)
+        return dt.evaluate(SPLAT_PIXELS)["url"], dt.evaluate(
+            "document.getElementById('splat-label').textContent")
+    wl = "window.DDHGS_REPORT.wavelengths_nm"
+    band1, _ = at_nm("%s[1]" % wl)
+    band2, _ = at_nm("%s[2]" % wl)
+    between, label = at_nm("(%s[1] + %s[2]) / 2" % (wl, wl))
+    checks["splat_between_label"] = label
+    checks["splat_between_interpolated"] = ("interpolated between band 1" in label
+                                            and between not in (band1, band2) and band1 != band2)
+
+    # NDVI colours every splat by (NIR - red) / (NIR + red).
+    dt.evaluate("(() => { const s = document.getElementById('splat-mode'); s.value = 'index:ndvi';"
+                " s.dispatchEvent(new Event('input')); })()")
+    wait_frames(dt, 3)
+    checks["splat_ndvi_label"] = dt.evaluate("document.getElementById('splat-label').textContent")
+    checks["splat_ndvi_recoloured"] = (checks["splat_ndvi_label"].startswith("NDVI")
+                                       and dt.evaluate(SPLAT_PIXELS)["url"] not in (between, band1, band2))
+    dt.evaluate("(() => { const s = document.getElementById('splat-mode'); s.value = 'band';"
+                " s.dispatchEvent(new Event('input')); })()")
+    wait_frames(dt, 3)
+
     # A click on the most visible splat plots a spectrum.
     left, top, width, height = dt.evaluate(CENTRE % '"#splat-canvas"')
     x, y = band_low["best"]
@@ -222,6 +258,8 @@ def check_splat_view(dt, screenshot):
 def splat_ok(checks, bands):
     pick = checks.get("splat_pick") or {}
     return (checks["splat_drawn_fraction"] > 0.01 and checks["splat_recoloured"]
+            and checks["splat_between_interpolated"]
+            and checks["splat_ndvi_recoloured"]
             and checks["splat_slider_moved"][0] != checks["splat_slider_moved"][1]
             and pick.get("gaussians", 0) > 0
             and checks["splat_spectrum_points"] == [bands, bands])

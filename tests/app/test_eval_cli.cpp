@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
@@ -53,6 +54,18 @@ io::GaussianPly model_from_points(const io::Scene& scene) {
   ply.sh_rest = torch::zeros({g, n, 3});
   ply.wavelengths_nm = scene.wavelengths_nm;
   return ply;
+}
+
+// A float32 .npy of shape [H, W] with NaNs, which the cube readers refuse on
+// purpose: version 1 header, little-endian data after it.
+torch::Tensor read_float_npy(const fs::path& path, int64_t height, int64_t width) {
+  const std::string bytes = io::read_file(path);
+  const size_t header = 10 + (uint8_t(bytes[8]) | (uint8_t(bytes[9]) << 8));
+  EXPECT_NE(bytes.find("'descr': '<f4'"), std::string::npos) << path;
+  EXPECT_EQ(bytes.size(), header + size_t(height * width) * 4) << path;
+  torch::Tensor out = torch::empty({height, width}, torch::kFloat);
+  std::memcpy(out.data_ptr<float>(), bytes.data() + header, size_t(height * width) * 4);
+  return out;
 }
 
 class EvalCli : public ::testing::Test {
@@ -141,6 +154,43 @@ TEST_F(EvalCli, RenderWritesCubesPicturesAndOrbit) {
   }
   EXPECT_GT(cubes, 0);
   EXPECT_EQ(compares, cubes);
+
+  // --index ndvi: (NIR - red) / (NIR + red) of the same renders. No band of
+  // this 6-band scene lies in either window (842 +- 28.5, 668 +- 7 nm), so
+  // each is the linear interpolation at the window's centre, computed here
+  // by hand from the scene's wavelengths.
+  ASSERT_EQ(ddhgs("render " + run.string() + " --index ndvi --format npy --diff", &out), 0) << out;
+  const std::vector<double> wl = io::load_scene(scene_dir_)->wavelengths_nm;
+  auto at = [&](const torch::Tensor& cube, double nm) {
+    size_t hi = 1;
+    while (wl[hi] < nm) ++hi;
+    const double t = (nm - wl[hi - 1]) / (wl[hi] - wl[hi - 1]);
+    return cube.select(2, int64_t(hi - 1)) * (1 - t) + cube.select(2, int64_t(hi)) * t;
+  };
+  const fs::path ndvi_dir = run / "renders" / "test_ndvi";
+  const json summary = json::parse(io::read_file(ndvi_dir / "ndvi.json"));
+  ASSERT_EQ(summary["frames"].size(), size_t(cubes));
+  for (const json& frame : summary["frames"]) {
+    const std::string name = frame["name"];
+    const torch::Tensor cube = io::read_cube(dir / (name + ".npy")).data.to(torch::kDouble);
+    const torch::Tensor nir = at(cube, 842), red = at(cube, 668);
+    const torch::Tensor expected = (nir - red) / (nir + red);
+    const torch::Tensor got =
+        read_float_npy(ndvi_dir / (name + "_ndvi.npy"), cube.size(0), cube.size(1));
+    ASSERT_EQ(got.sizes(), expected.sizes());
+    const torch::Tensor signal = (nir + red) > 1e-3;
+    EXPECT_TRUE(got.isfinite().eq(signal).all().item<bool>()) << name;  // NaN without signal
+    EXPECT_LT((got.to(torch::kDouble) - expected).masked_select(signal).abs().max().item<double>(),
+              1e-5)
+        << name;
+    EXPECT_TRUE(fs::exists(ndvi_dir / (name + "_ndvi_compare.png"))) << name;
+    EXPECT_TRUE(std::isfinite(frame["mean_absolute_error"].get<double>())) << frame.dump();
+  }
+  EXPECT_EQ(summary["truth"], "clean");
+  EXPECT_EQ(ddhgs("render " + run.string() + " --index evi", &out), 1);
+  EXPECT_TRUE(contains(last_line(out), "--index: unknown index 'evi' (one of ndvi, ndre, gndvi)"))
+      << out;
+  EXPECT_NE(ddhgs("render " + run.string() + " --index ndvi --band 2", &out), 0);
 
   fs::path orbit = test::temp_dir("cli_orbit");
   ASSERT_EQ(ddhgs("render " + run.string() + " --orbit 4 --band 2 --colormap gray --out " +

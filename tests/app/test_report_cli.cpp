@@ -90,7 +90,7 @@ class ReportCli : public ::testing::Test {
         << out;
     ASSERT_EQ(ddhgs("--threads 2 train " + scene_->string() + " --out " + run_->string() +
                         " --preset demo --iterations 60 --checkpoint-every 1000"
-                        " --set output.log_every=10",
+                        " --set output.log_every=10 --set output.test_every=30",
                     &out),
               0)
         << out;
@@ -159,6 +159,16 @@ TEST_F(ReportCli, WritesSelfContainedReportThatAgreesWithTheRun) {
   // Curves: every logged iteration of metrics.jsonl (1, 10, ..., 60).
   EXPECT_EQ(data["curves"]["iter"].size(), 7u);
   EXPECT_EQ(data["curves"]["iter"].back(), 60);
+  // Test-view PSNR against training time at iterations 30 and 60: the last
+  // is the final model's, which the summary measured again.
+  const json& test = data["curves"]["test"];
+  ASSERT_EQ(test["minutes"].size(), 2u) << test.dump();
+  EXPECT_GT(test["minutes"][1].get<double>(), test["minutes"][0].get<double>());
+  EXPECT_LE(test["minutes"][1].get<double>(),
+            data["train_summary"]["seconds"].get<double>() / 60 + 1e-9);
+  EXPECT_EQ(test["test_psnr"][1], data["train_summary"]["test_psnr"]);
+  EXPECT_EQ(test["test_psnr_clean"][1], data["train_summary"]["test_psnr_clean"]);
+  EXPECT_NE(test["test_psnr"][0], test["test_psnr"][1]);
   EXPECT_EQ(data["train_summary"]["iterations"], 60);
   EXPECT_EQ(data["config"]["iterations"], 60);
 

@@ -92,6 +92,14 @@
     chart(box, "Gaussian count", "iteration", "Gaussians", c.iter, [
       { label: "Gaussians", values: c.num_gaussians },
     ]);
+    // Time to quality: the test views' PSNR as training went (output.test_every).
+    const t = c.test;
+    if (t && t.minutes.length) {
+      const series = [{ label: "test PSNR (captured)", values: t.test_psnr }];
+      if (t.test_psnr_clean.some((v) => v !== null))
+        series.push({ label: "test PSNR (clean truth)", values: t.test_psnr_clean });
+      chart(box, "Test-view PSNR against training time", "minutes of training", "PSNR dB", t.minutes, series);
+    }
   }
 
   function spectralSection() {

@@ -102,7 +102,8 @@ uniform sampler2D uCoefficients;
 uniform sampler2D uColourMap;
 uniform vec3 uWeights[${4 * LAYERS}];
 uniform vec3 uOffset;
-uniform int uMode;  // 0: linear light -> sRGB, 1: display RGB, 2: channel 0 through the colour map
+uniform int uMode;  // 0: linear light -> sRGB, 1: display RGB, 2: channel 0 through the colour map,
+                    // 3: (c0 - c1) / (c0 + c1) from -1..1 through the colour map (grey without signal)
 void modifySplatCenter(inout vec3 center) {}
 void modifySplatRotationScale(vec3 originalCenter, vec3 modifiedCenter, inout vec4 rotation, inout vec3 scale) {}
 void modifySplatColor(vec3 center, inout vec4 color) {
@@ -118,6 +119,11 @@ void modifySplatColor(vec3 center, inout vec4 color) {
     color.rgb = mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), x));
   } else if (uMode == 1) {
     color.rgb = clamp(c, 0.0, 1.0);
+  } else if (uMode == 3) {
+    float sum = c.x + c.y;
+    float v = 0.5 * ((c.x - c.y) / max(sum, 1e-6) + 1.0);
+    color.rgb = sum > 1e-3 ? texture(uColourMap, vec2(clamp(v, 0.0, 1.0) * (255.0 / 256.0) + 0.5 / 256.0, 0.5)).rgb
+                           : vec3(0.5);
   } else {
     color.rgb = texture(uColourMap, vec2(clamp(c.x, 0.0, 1.0) * (255.0 / 256.0) + 0.5 / 256.0, 0.5)).rgb;
   }
@@ -217,18 +223,57 @@ void modifySplatColor(vec3 center, inout vec4 color) {
   // ---- recolouring ----
   const modeSelect = $("splat-mode"), slider = $("splat-band"), widthInput = $("splat-width");
   const mapSelect = $("splat-colormap");
-  slider.max = String(N - 1);
-  slider.value = String(Math.floor((N - 1) / 2));
+  // The slider is in nanometres, continuous over the captured range: between
+  // two captured bands the view shows their linear interpolation, as `ddhgs
+  // render --wavelengths` does (core::interpolation_map).
+  const step = N > 1 ? Math.max(0.1, Math.round((wl[N - 1] - wl[0]) / 1000 * 10) / 10) : 1;
+  slider.min = String(wl[0]);
+  slider.max = String(wl[N - 1]);
+  slider.step = String(step);
+  slider.value = String(wl[Math.floor((N - 1) / 2)]);
   const viridis = R.viridis;
+  // Vegetation indices the bands cover: one more colouring each.
+  const indices = S.indices || [];
+  for (const index of indices) {
+    const option = document.createElement("option");
+    option.value = "index:" + index.name;
+    option.textContent = index.name.toUpperCase();
+    modeSelect.appendChild(option);
+  }
+  const indexOf = (mode) => indices.find((i) => "index:" + i.name === mode);
+
+  // The captured bands around a wavelength and the weight of the upper one.
+  function bracket(nm) {
+    let hi = 1;
+    while (hi < N - 1 && wl[hi] < nm) ++hi;
+    if (N === 1) return [0, 0, 0];
+    const lo = hi - 1;
+    const t = Math.min(1, Math.max(0, (nm - wl[lo]) / (wl[hi] - wl[lo])));
+    // A captured wavelength (within half a slider step) is its band.
+    if (Math.abs(nm - wl[lo]) <= step / 2) return [lo, lo, 0];
+    if (Math.abs(nm - wl[hi]) <= step / 2) return [hi, hi, 0];
+    return [lo, hi, t];
+  }
 
   // Weights over band values -> three output channels: [N][3].
   function bandWeights() {
     const mode = modeSelect.value;
     if (mode === "rgb") return S.pseudo_rgb.weights;
-    const centre = Number(slider.value);
-    const half = mode === "range" ? Math.floor(Number(widthInput.value) / 2) : 0;
-    const lo = Math.max(0, centre - half), hi = Math.min(N - 1, centre + half);
+    const index = indexOf(mode);
+    if (index) return wl.map((_, n) => [index.a[n], index.b[n], 0]);
+    const nm = Number(slider.value);
+    const [a, b, t] = bracket(nm);
     const w = wl.map(() => [0, 0, 0]);
+    if (mode === "band") {
+      w[a] = [1 - t, 1 - t, 1 - t];
+      w[b] = w[b].map((v) => v + t);
+      state.bands = [a, b];
+      state.nm = nm;
+      return w;
+    }
+    const centre = t < 0.5 ? a : b;
+    const half = Math.floor(Number(widthInput.value) / 2);
+    const lo = Math.max(0, centre - half), hi = Math.min(N - 1, centre + half);
     for (let n = lo; n <= hi; ++n) w[n] = [1, 1, 1].map((v) => v / (hi - lo + 1));
     state.bands = [lo, hi];
     return w;
@@ -236,7 +281,8 @@ void modifySplatColor(vec3 center, inout vec4 color) {
 
   function recolour() {
     const w = bandWeights();
-    const mode = modeSelect.value === "rgb" ? (S.pseudo_rgb.srgb_curve ? 0 : 1) : 2;
+    const index = indexOf(modeSelect.value);
+    const mode = modeSelect.value === "rgb" ? (S.pseudo_rgb.srgb_curve ? 0 : 1) : index ? 3 : 2;
     const weights = new Float32Array(3 * 4 * LAYERS);
     const offset = [0, 0, 0];
     for (let j = 0; j < 3; ++j) {
@@ -248,9 +294,10 @@ void modifySplatColor(vec3 center, inout vec4 color) {
         }
       }
     }
-    const grey = mapSelect.value === "gray";
+    const grey = mapSelect.value === "gray" && !index;
+    const table = index ? R.rdylgn : viridis;
     for (let i = 0; i < 256; ++i)
-      for (let j = 0; j < 3; ++j) lut[4 * i + j] = grey ? i : viridis[i][j];
+      for (let j = 0; j < 3; ++j) lut[4 * i + j] = grey ? i : table[i][j];
     for (let i = 0; i < 256; ++i) lut[4 * i + 3] = 255;
     colourMap.lock().set(lut);
     colourMap.unlock();
@@ -260,14 +307,20 @@ void modifySplatColor(vec3 center, inout vec4 color) {
     // The background as the run rendered it, through the same colours.
     const bg = [0, 1, 2].map((j) => S.background.reduce((s, v, n) => s + v * w[n][j], 0));
     const srgb = (x) => { x = Math.min(1, Math.max(0, x)); return x <= 0.0031308 ? 12.92 * x : 1.055 * Math.pow(x, 1 / 2.4) - 0.055; };
-    const shown = mode === 0 ? bg.map(srgb) : mode === 1 ? bg.map((x) => Math.min(1, Math.max(0, x)))
-      : (grey ? [bg[0], bg[0], bg[0]] : viridis[Math.round(255 * Math.min(1, Math.max(0, bg[0])))].map((v) => v / 255));
+    const unit = (x) => Math.min(1, Math.max(0, x));
+    const bgIndex = bg[0] + bg[1] > 1e-3 ? 0.5 * ((bg[0] - bg[1]) / (bg[0] + bg[1]) + 1) : null;
+    const shown = mode === 0 ? bg.map(srgb) : mode === 1 ? bg.map(unit)
+      : mode === 3 ? (bgIndex === null ? [0.5, 0.5, 0.5] : R.rdylgn[Math.round(255 * unit(bgIndex))].map((v) => v / 255))
+      : (grey ? [bg[0], bg[0], bg[0]] : viridis[Math.round(255 * unit(bg[0]))].map((v) => v / 255));
     camera.camera.clearColor = new pc.Color(shown[0], shown[1], shown[2]);
     state.clearColour = shown.map((v) => Math.round(255 * Math.min(1, Math.max(0, v))));
-    const band = Number(slider.value);
+    const [lo, hi] = state.bands || [0, 0];  // set by bandWeights outside pseudo-RGB
     $("splat-label").textContent = modeSelect.value === "rgb" ? S.pseudo_rgb.title
-      : state.bands[0] === state.bands[1] ? "band " + band + ": " + wl[band].toFixed(1) + " nm"
-      : "bands " + state.bands[0] + "-" + state.bands[1] + ": " + wl[state.bands[0]].toFixed(1) + "-" + wl[state.bands[1]].toFixed(1) + " nm (mean)";
+      : index ? index.title
+      : lo === hi ? "band " + lo + ": " + wl[lo].toFixed(1) + " nm"
+      : modeSelect.value === "band" ? state.nm.toFixed(1) + " nm, not captured: interpolated between band " + lo +
+        " (" + wl[lo].toFixed(1) + " nm) and band " + hi + " (" + wl[hi].toFixed(1) + " nm)"
+      : "bands " + lo + "-" + hi + ": " + wl[lo].toFixed(1) + "-" + wl[hi].toFixed(1) + " nm (mean)";
     state.recolours += 1;
   }
   for (const control of [modeSelect, slider, widthInput, mapSelect]) control.addEventListener("input", recolour);
