@@ -108,6 +108,31 @@ TEST(Metrics, SsimIsSymmetricAndAveragesBands) {
   EXPECT_NEAR(mixed[0], bands[0], 1e-12);
 }
 
+// The separable local means (direct loops) against LibTorch's convolution,
+// in double, on an image of odd size with several bands.
+TEST(Metrics, SsimMatchesAConvolutionReference) {
+  torch::manual_seed(5);
+  const torch::Tensor a = torch::rand({37, 41, 5}, torch::kDouble);
+  const torch::Tensor b = (a + 0.2 * torch::randn({37, 41, 5}, torch::kDouble)).clamp(0, 1);
+  namespace F = torch::nn::functional;
+  torch::Tensor taps = torch::arange(11, torch::kDouble) - 5.0;
+  taps = torch::exp(-(taps * taps) / (2 * 1.5 * 1.5));
+  taps = taps / taps.sum();
+  const torch::Tensor window = (taps.view({11, 1}) * taps.view({1, 11})).view({1, 1, 11, 11});
+  auto mean = [&](const torch::Tensor& t) { return F::conv2d(t, window); };
+  const torch::Tensor x = a.permute({2, 0, 1}).unsqueeze(1), y = b.permute({2, 0, 1}).unsqueeze(1);
+  const torch::Tensor mx = mean(x), my = mean(y);
+  const torch::Tensor vx = mean(x * x) - mx * mx, vy = mean(y * y) - my * my;
+  const torch::Tensor cxy = mean(x * y) - mx * my;
+  const double c1 = 1e-4, c2 = 9e-4;
+  const torch::Tensor map =
+      ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2));
+  const torch::Tensor expected = map.mean(std::vector<int64_t>{1, 2, 3});
+  const std::vector<double> got = band_ssim(a, b);
+  ASSERT_EQ(got.size(), 5u);
+  for (int64_t i = 0; i < 5; ++i) EXPECT_NEAR(got[size_t(i)], expected[i].item<double>(), 1e-12);
+}
+
 TEST(Metrics, SsimAgreesWithTheTrainingLoss) {
   // model::ssim (float, differentiable, used by the loss) and this double
   // evaluation metric share one definition.
