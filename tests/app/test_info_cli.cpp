@@ -10,6 +10,7 @@
 #include "io/files/atomic_file.h"
 #include "io/image/image.h"
 #include "io/transforms/transforms.h"
+#include "support/rig_tiff.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -187,6 +188,33 @@ TEST(InfoCli, BadInputExitsWithOneLine) {
   io::write_file_atomically(root / "transforms.json", "{\"frames\": 3}");
   EXPECT_EQ(info(root.string(), &out), 1);
   EXPECT_TRUE(contains(out, "transforms.json: frames: expected an array")) << out;
+}
+
+// A folder of rig captures: its band cameras and their angles to the
+// reference camera, as text and JSON; a band missing is one error line.
+TEST(InfoCli, DescribesRigCaptures) {
+  fs::path root = test::temp_dir("info_rig");
+  test::write_rig_capture(root / "0000SET" / "000", 0);
+  test::write_rig_capture(root / "0000SET" / "000", 1);
+  std::string out;
+  ASSERT_EQ(info(root.string(), &out), 0) << out;
+  EXPECT_TRUE(contains(out, "captures    2 (capture0 ... capture1)")) << out;
+  EXPECT_TRUE(contains(out, "rig         3 band cameras")) << out;
+  EXPECT_TRUE(contains(out,
+                       "camera 3  Red         668.0 nm (FWHM 14.0), 16 x 12 px, 16 bits, "
+                       "focal 5.40 mm, 1.500 deg from the reference"))
+      << out;
+  ASSERT_EQ(info(root.string() + " --json", &out), 0) << out;
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_EQ(j["layout"], "rig captures");
+  ASSERT_EQ(j["cameras"].size(), 3u);
+  EXPECT_EQ(j["cameras"][1]["band"], "Green");
+  EXPECT_EQ(j["cameras"][1]["centre_nm"], 560);
+
+  fs::remove(root / "0000SET" / "000" / "IMG_0001_3.tif");
+  EXPECT_EQ(info(root.string(), &out), 1);
+  EXPECT_TRUE(contains(out, "capture capture1 has no image from band camera 3 (Red")) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "io/cube/cube_formats.h"
+#include "io/cube/tiff_open.h"
 #include "io/files/atomic_file.h"
 #include "io/files/byte_count.h"
 
@@ -28,15 +29,23 @@ int ignore_warning(TIFF*, void*, const char*, const char*, va_list) {
   return 1;
 }
 
+}  // namespace
+
+TIFF* open_tiff_quietly(const fs::path& path, const char* mode, std::string* error) {
+  TIFFOpenOptions* options = TIFFOpenOptionsAlloc();
+  TIFFOpenOptionsSetErrorHandlerExtR(options, keep_error, error);
+  TIFFOpenOptionsSetWarningHandlerExtR(options, ignore_warning, nullptr);
+  TIFF* tif = TIFFOpenExt(path.c_str(), mode, options);
+  TIFFOpenOptionsFree(options);
+  return tif;
+}
+
+namespace {
+
 class TiffFile {
  public:
-  TiffFile(const fs::path& path, const char* mode) : path_(path) {
-    TIFFOpenOptions* options = TIFFOpenOptionsAlloc();
-    TIFFOpenOptionsSetErrorHandlerExtR(options, keep_error, &error_);
-    TIFFOpenOptionsSetWarningHandlerExtR(options, ignore_warning, nullptr);
-    tif_ = TIFFOpenExt(path.c_str(), mode, options);
-    TIFFOpenOptionsFree(options);
-  }
+  TiffFile(const fs::path& path, const char* mode)
+      : path_(path), tif_(open_tiff_quietly(path, mode, &error_)) {}
   ~TiffFile() {
     if (tif_) TIFFClose(tif_);
   }
