@@ -58,9 +58,8 @@ int render_index_frames(const io::Scene& scene, const model::Gaussians& model,
     if (options.transform) image = options.transform(image);
     const torch::Tensor values = index_values(image, map);  // [H, W]
     const torch::Tensor shown = index_picture(values);
-    const torch::Tensor bar_picture = index_picture(
-        torch::linspace(-1, 1, values.size(1)).unsqueeze(0).expand({kColourBarPx, values.size(1)}));
-    io::write_png(stem.string() + "_" + label + ".png", stacked(shown, bar_picture));
+    io::write_png(stem.string() + "_" + label + ".png",
+                  stacked(shown, colour_bar(kColourBarPx, values.size(1), Colormap::RdYlGn)));
     ++written;
     if (options.format != OutputFormat::Png) {
       io::write_npy(stem.string() + "_" + label + ".npy", values);

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "core/error.h"
+#include "core/text.h"
 #include "io/cube/cube.h"
 #include "io/scene/scene.h"
 
@@ -14,10 +15,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
+using core::lower;
 
 bool is_cube_file(const fs::path& path) {
   static const char* exts[] = {".npy", ".pt", ".hdr", ".tif", ".tiff"};

@@ -419,7 +419,7 @@ json Trainer::test_psnr() {
   return out;
 }
 
-void Trainer::write_outputs(double seconds) {
+void Trainer::write_outputs(double seconds, const json& test_at_end) {
   // The encoder's offsets are added to the exported coefficients, so any
   // renderer of the PLY sees what training saw.
   torch::Tensor offsets;
@@ -459,7 +459,7 @@ void Trainer::write_outputs(double seconds) {
     summary["denoiser_finetune_steps"] = diffusion_->options().finetune_steps;
     summary["denoiser_finetune_seconds"] = seconds - gaussian_seconds;
   }
-  summary.update(test_psnr());
+  summary.update(test_at_end.is_null() ? test_psnr() : test_at_end);
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
   if (background_module_ || config_.model.background_from_views) {
     // eval, render and report take it from here (config.json stays as the
@@ -497,6 +497,7 @@ TrainStatus Trainer::run_steps() {
   const double seconds_before = state_.counters.seconds;
   const auto start = std::chrono::steady_clock::now();
   double measuring = 0;  // seconds spent on test-view records, not training
+  json test_at_end;      // the record's test PSNR at the last Gaussian iteration, if taken
   auto elapsed = [&] {
     return seconds_before - measuring +
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -524,7 +525,9 @@ TrainStatus Trainer::run_steps() {
       const bool test = iteration <= iterations && every(iteration, test_every);
       if (test) {
         const auto measure_start = std::chrono::steady_clock::now();
-        record.update(test_psnr());
+        const json measured = test_psnr();
+        record.update(measured);
+        if (iteration == iterations) test_at_end = measured;
         measuring +=
             std::chrono::duration<double>(std::chrono::steady_clock::now() - measure_start).count();
       }
@@ -574,7 +577,7 @@ TrainStatus Trainer::run_steps() {
   // Gaussians, 141 bands, 640x512) are not needed by the outputs below.
   core::pool_release_idle();
   save(true);
-  write_outputs(state_.counters.seconds);
+  write_outputs(state_.counters.seconds, test_at_end);
   bar.finish();
   return TrainStatus::Finished;
 }

@@ -92,7 +92,9 @@ class Trainer {
   nlohmann::json finetune_step(int64_t iteration);
   TrainStatus run_steps();
   void save(bool numbered);
-  void write_outputs(double seconds);
+  // test_at_end: test_psnr() already taken at the last Gaussian iteration
+  // (null: measured here); the denoiser's fine-tuning does not change it.
+  void write_outputs(double seconds, const nlohmann::json& test_at_end);
   // Mean PSNR (dB) of the held-out views, against noisy and clean ground truth.
   nlohmann::json test_psnr();
 

@@ -6,6 +6,7 @@
 #include "core/buffer_pool.h"
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/text.h"
 #include "io/cube/cube_formats.h"
 
 namespace ddhgs::io {
@@ -195,9 +196,7 @@ namespace {
 enum class Format { Npy, Pt, Envi, Tiff, Image };
 
 std::string lower_extension(const fs::path& path) {
-  std::string ext = path.extension().string();
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return ext;
+  return core::lower(path.extension().string());
 }
 
 Format format_of(const fs::path& path) {

@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
 #include "io/files/byte_count.h"
@@ -28,17 +29,8 @@ struct EnviHeader {
   fs::path hdr, data;
 };
 
-std::string trim(const std::string& s) {
-  size_t a = s.find_first_not_of(" \t\r\n");
-  if (a == std::string::npos) return {};
-  size_t b = s.find_last_not_of(" \t\r\n");
-  return s.substr(a, b - a + 1);
-}
-
-std::string lower(std::string s) {
-  for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
+using core::lower;
+using core::trim;
 
 // key = value pairs; a value opened with '{' runs, across lines, to its '}'.
 std::map<std::string, std::string> parse_pairs(const std::string& text, const fs::path& hdr) {

@@ -3,16 +3,14 @@
 #include <cctype>
 
 #include "core/error.h"
+#include "core/text.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
 
 namespace {
 
-std::string lower(std::string s) {
-  for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
+using core::lower;
 
 }  // namespace
 

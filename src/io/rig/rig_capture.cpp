@@ -9,6 +9,7 @@
 #include <set>
 
 #include "core/error.h"
+#include "core/text.h"
 #include "io/cube/tiff_open.h"
 
 namespace ddhgs::io {
@@ -29,12 +30,7 @@ std::string unescape(std::string s) {
   return s;
 }
 
-std::string trim(const std::string& s) {
-  size_t a = 0, b = s.size();
-  while (a < b && std::isspace(static_cast<unsigned char>(s[a]))) ++a;
-  while (b > a && std::isspace(static_cast<unsigned char>(s[b - 1]))) --b;
-  return s.substr(a, b - a);
-}
+using core::trim;
 
 // Where ":name" follows a namespace prefix (letters right before the colon,
 // and before them a tag or attribute boundary), from `from` on.
@@ -107,9 +103,7 @@ std::vector<double> numbers(const std::vector<std::string>& items, const fs::pat
 }
 
 bool is_tiff(const fs::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string ext = core::lower(path.extension().string());
   return ext == ".tif" || ext == ".tiff";
 }
 

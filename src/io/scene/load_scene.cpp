@@ -10,6 +10,7 @@
 #include <set>
 
 #include "core/error.h"
+#include "core/text.h"
 #include "io/colmap/colmap.h"
 #include "io/scene/band_grid.h"
 #include "io/scene/colmap_beside.h"
@@ -166,10 +167,7 @@ Found from_transforms(const fs::path& root, const LoadOptions& options) {
   return found;
 }
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
+using core::lower;
 
 // Cube files of a folder by stem; .hdr stands for an ENVI pair.
 std::map<std::string, fs::path> cubes_by_stem(const fs::path& dir) {
