@@ -13,6 +13,7 @@
 #include "core/spectral_pca.h"
 #include "core/tensor_values.h"
 #include "io/rig/rig_capture.h"
+#include "io/rig/rig_radiometry.h"
 #include "io/scene/backdrop.h"
 #include "io/scene/scene.h"
 #include "io/scene/scene_report.h"
@@ -262,24 +263,51 @@ int describe_rig(const std::string& dir, bool as_json) {
   const std::vector<io::RigBandImage>& bands = captures.front().bands;
   nlohmann::json cameras = nlohmann::json::array();
   for (const io::RigBandImage& b : bands)
-    cameras.push_back(
-        {{"rig_index", b.rig_index},
-         {"band", b.band_name},
-         {"centre_nm", b.centre_nm},
-         {"fwhm_nm", b.fwhm_nm},
-         {"width", b.width},
-         {"height", b.height},
-         {"bits", b.bits},
-         {"focal_length_mm", b.focal_length_mm},
-         {"rig_relatives_deg", b.rig_relatives_deg},
-         {"angle_to_reference_deg", io::rig_relative_angle_deg(b.rig_relatives_deg)}});
+    cameras.push_back({{"rig_index", b.rig_index},
+                       {"band", b.band_name},
+                       {"centre_nm", b.centre_nm},
+                       {"fwhm_nm", b.fwhm_nm},
+                       {"width", b.width},
+                       {"height", b.height},
+                       {"bits", b.bits},
+                       {"focal_length_mm", b.focal_length_mm},
+                       {"rig_relatives_deg", b.rig_relatives_deg},
+                       {"angle_to_reference_deg", io::rig_relative_angle_deg(b.rig_relatives_deg)},
+                       {"radiometry",
+                        {{"black_level", b.radiometry.black_level},
+                         {"exposure_s", b.radiometry.exposure_s},
+                         {"gain", b.radiometry.gain()},
+                         {"calibration", b.radiometry.calibration},
+                         {"vignetting_centre_px", b.radiometry.vignetting_centre_px},
+                         {"vignetting_polynomial", b.radiometry.vignetting_polynomial},
+                         {"irradiance", b.radiometry.irradiance},
+                         {"irradiance_tag", b.radiometry.irradiance_tag}}}});
+  // Radiance needs exposure, gain and calibration in every file;
+  // reflectance a panel capture or a DLS reading in every file.
+  std::string no_radiance, no_dls;
+  for (const io::RigCapture& c : captures)
+    for (const io::RigBandImage& b : c.bands) {
+      if (no_radiance.empty()) try {
+          io::require_radiometry(b);
+        } catch (const core::Error& e) {
+          no_radiance = e.what();
+        }
+      if (no_dls.empty() && b.radiometry.irradiance <= 0) no_dls = b.file.string();
+    }
+  const std::string radiance = no_radiance.empty() ? "every band image" : "no: " + no_radiance;
+  const std::string reflectance =
+      !no_radiance.empty() ? "no (no radiance)"
+      : no_dls.empty()     ? "from the DLS in every capture, or a panel capture (--panel)"
+                           : "needs a panel capture (--panel): no DLS irradiance in " + no_dls;
   if (as_json) {
     nlohmann::json ids = nlohmann::json::array();
     for (const io::RigCapture& c : captures) ids.push_back(c.id);
     std::cout << nlohmann::json{{"dataset", dir},
                                 {"layout", "rig captures"},
                                 {"captures", ids},
-                                {"cameras", cameras}}
+                                {"cameras", cameras},
+                                {"radiance", no_radiance.empty()},
+                                {"reflectance", reflectance}}
                      .dump(2)
               << "\n";
     return 0;
@@ -297,9 +325,20 @@ int describe_rig(const std::string& dir, bool as_json) {
                   (long long)b.height, b.bits, b.focal_length_mm,
                   io::rig_relative_angle_deg(b.rig_relatives_deg));
     std::cout << line;
+    const io::RigRadiometry& r = b.radiometry;
+    std::snprintf(line, sizeof line,
+                  "            black level %.0f, exposure %.3f ms, gain %.2gx, calibration %s, "
+                  "vignetting %s, DLS %s\n",
+                  r.black_level, r.exposure_s * 1e3, r.gain(),
+                  r.calibration.size() == 3 ? "yes" : "none",
+                  r.vignetting_polynomial.empty() ? "none" : "yes",
+                  r.irradiance > 0 ? (std::to_string(r.irradiance) + " W/m2/nm").c_str() : "none");
+    std::cout << line;
   }
-  std::cout << "  note: ddhgs reads and checks rig captures; training on them is not built yet "
-               "(issue 31)\n";
+  std::cout << "radiance    " << radiance << "\n"
+            << "reflectance " << reflectance << "\n"
+            << "  note: ddhgs reads and checks rig captures and converts them to radiance and "
+               "reflectance; training on them is not built yet (issue 31)\n";
   return 0;
 }
 

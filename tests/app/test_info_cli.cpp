@@ -9,6 +9,7 @@
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
 #include "io/image/image.h"
+#include "io/rig/rig_capture.h"
 #include "io/transforms/transforms.h"
 #include "support/rig_tiff.h"
 #include "support/test_support.h"
@@ -210,6 +211,37 @@ TEST(InfoCli, DescribesRigCaptures) {
   ASSERT_EQ(j["cameras"].size(), 3u);
   EXPECT_EQ(j["cameras"][1]["band"], "Green");
   EXPECT_EQ(j["cameras"][1]["centre_nm"], 560);
+  EXPECT_EQ(j["radiance"], false);
+  // These files carry no EXIF: radiance is refused, naming a file and the tag.
+  ASSERT_EQ(info(root.string(), &out), 0) << out;
+  EXPECT_TRUE(contains(out, "radiance    no: ")) << out;
+  EXPECT_TRUE(contains(out, "its EXIF has no ExposureTime")) << out;
+
+  // With exposure, gain, calibration and a DLS reading, both are available.
+  const fs::path full = test::temp_dir("info_rig_radiometry");
+  for (int camera = 1; camera <= 2; ++camera) {
+    io::RigBandImage b;
+    b.file = full / ("IMG_0000_" + std::to_string(camera) + ".tif");
+    b.capture_id = "c0";
+    b.rig_index = camera;
+    b.band_name = camera == 1 ? "Red" : "NIR";
+    b.centre_nm = camera == 1 ? 668 : 842;
+    b.fwhm_nm = 14;
+    b.radiometry.black_level = 4800;
+    b.radiometry.has_black_level = true;
+    b.radiometry.exposure_s = 0.0015;
+    b.radiometry.iso_speed = 100;
+    b.radiometry.calibration = {3e-4, 1e-6, 1e-5};
+    b.radiometry.irradiance = 1.5;
+    io::write_rig_band_image(b, torch::full({6, 8}, 20000.0));
+  }
+  ASSERT_EQ(info(full.string(), &out), 0) << out;
+  EXPECT_TRUE(contains(out,
+                       "black level 4800, exposure 1.500 ms, gain 1x, calibration yes, "
+                       "vignetting none, DLS 1.500000 W/m2/nm"))
+      << out;
+  EXPECT_TRUE(contains(out, "radiance    every band image")) << out;
+  EXPECT_TRUE(contains(out, "reflectance from the DLS in every capture")) << out;
 
   fs::remove(root / "0000SET" / "000" / "IMG_0001_3.tif");
   EXPECT_EQ(info(root.string(), &out), 1);

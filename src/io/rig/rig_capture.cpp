@@ -114,6 +114,78 @@ std::string capture_stem(const fs::path& file) {
   return underscore == std::string::npos ? stem : stem.substr(0, underscore);
 }
 
+// A rational or float tag of the current directory, whichever width this
+// libtiff hands it back in (EXIF rationals come back as float). 0 if absent.
+double real_tag(TIFF* tif, uint32_t tag) {
+  const TIFFField* field = TIFFFieldWithTag(tif, tag);
+  if (!field) return 0;
+  if (TIFFFieldSetGetSize(field) == 8) {
+    double value = 0;
+    return TIFFGetField(tif, tag, &value) == 1 ? value : 0;
+  }
+  float value = 0;
+  return TIFFGetField(tif, tag, &value) == 1 ? value : 0;
+}
+
+// EXIF radiometry: BlackLevel in the main directory (a DNG tag, as MicaSense
+// writes it), ExposureTime and ISOSpeed in the EXIF directory. Leaves the
+// handle in the EXIF directory.
+void read_exif_radiometry(TIFF* tif, RigRadiometry* r) {
+  uint16_t count = 0;
+  float* levels = nullptr;
+  if (TIFFGetField(tif, TIFFTAG_BLACKLEVEL, &count, &levels) == 1 && count > 0 && levels) {
+    double sum = 0;
+    for (uint16_t i = 0; i < count; ++i) sum += levels[i];
+    r->black_level = sum / count;
+    r->has_black_level = true;
+  }
+  uint64_t exif_offset = 0;
+  if (TIFFGetField(tif, TIFFTAG_EXIFIFD, &exif_offset) != 1 || exif_offset == 0 ||
+      TIFFReadEXIFDirectory(tif, exif_offset) != 1)
+    return;
+  r->exposure_s = real_tag(tif, EXIFTAG_EXPOSURETIME);
+  uint32_t iso = 0;
+  if (TIFFGetField(tif, EXIFTAG_ISOSPEED, &iso) == 1 && iso > 0) {
+    r->iso_speed = iso;
+  } else {
+    uint16_t n = 0;
+    uint16_t* ratings = nullptr;
+    if (TIFFGetField(tif, EXIFTAG_ISOSPEEDRATINGS, &n, &ratings) == 1 && n > 0 && ratings)
+      r->iso_speed = ratings[0];
+  }
+}
+
+// XMP radiometry: calibration, vignetting and the DLS irradiance, scaled to
+// W/m^2/nm as MicaSense documents it (IrradianceScaleToSIUnits where given;
+// a DLS 2, which writes HorizontalIrradiance, otherwise reports in 1/100).
+void read_xmp_radiometry(const std::string& xmp, const fs::path& file, RigRadiometry* r) {
+  r->calibration = numbers(xmp_list(xmp, "RadiometricCalibration"), file, "RadiometricCalibration");
+  if (!r->calibration.empty() && r->calibration.size() != 3)
+    throw core::Error(file, "XMP RadiometricCalibration has " +
+                                std::to_string(r->calibration.size()) +
+                                " values, expected 3 (a1, a2, a3)");
+  r->vignetting_centre_px = numbers(xmp_list(xmp, "VignettingCenter"), file, "VignettingCenter");
+  if (!r->vignetting_centre_px.empty() && r->vignetting_centre_px.size() != 2)
+    throw core::Error(file, "XMP VignettingCenter has " +
+                                std::to_string(r->vignetting_centre_px.size()) +
+                                " values, expected 2 (x, y)");
+  r->vignetting_polynomial =
+      numbers(xmp_list(xmp, "VignettingPolynomial"), file, "VignettingPolynomial");
+  const std::optional<std::string> horizontal = xmp_property(xmp, "HorizontalIrradiance");
+  double scale = horizontal ? 0.01 : 1.0;
+  if (auto s = xmp_property(xmp, "IrradianceScaleToSIUnits"))
+    scale = number(*s, file, "IrradianceScaleToSIUnits");
+  for (const char* tag : {"HorizontalIrradiance", "SpectralIrradiance", "Irradiance"}) {
+    const std::optional<std::string> value = xmp_property(xmp, tag);
+    if (!value) continue;
+    const double irradiance = number(*value, file, tag) * scale;
+    if (irradiance <= 0) continue;  // a DLS that did not measure
+    r->irradiance = irradiance;
+    r->irradiance_tag = tag;
+    break;
+  }
+}
+
 }  // namespace
 
 std::optional<std::string> xmp_property(const std::string& xmp, const std::string& name) {
@@ -166,6 +238,7 @@ RigBandImage read_rig_band_image(const fs::path& file) {
   const std::string xmp = has_xmp && xmp_data
                               ? std::string(static_cast<const char*>(xmp_data), xmp_size)
                               : std::string();
+  read_exif_radiometry(tif, &image.radiometry);
   TIFFClose(tif);
   image.width = width;
   image.height = height;
@@ -203,6 +276,7 @@ RigBandImage read_rig_band_image(const fs::path& file) {
     throw core::Error(file, "XMP RigRelatives has " +
                                 std::to_string(image.rig_relatives_deg.size()) +
                                 " values, expected 3 angles");
+  read_xmp_radiometry(xmp, file, &image.radiometry);
   return image;
 }
 
@@ -271,6 +345,121 @@ std::vector<RigCapture> read_rig_captures(const fs::path& dir) {
                               example.second + " in another capture): a band is missing");
   }
   return captures;
+}
+
+namespace {
+
+std::string joined(const std::vector<double>& values) {
+  std::string out;
+  char item[32];
+  for (size_t i = 0; i < values.size(); ++i) {
+    std::snprintf(item, sizeof item, "%s%.17g", i ? "," : "", values[i]);
+    out += item;
+  }
+  return out;
+}
+
+std::string seq(const std::string& name, const std::vector<double>& values) {
+  if (values.empty()) return "";
+  std::string out = "<Camera:" + name + "><rdf:Seq>";
+  char item[48];
+  for (double v : values) {
+    std::snprintf(item, sizeof item, "<rdf:li>%.17g</rdf:li>", v);
+    out += item;
+  }
+  return out + "</rdf:Seq></Camera:" + name + ">\n";
+}
+
+std::string xmp_of(const RigBandImage& b) {
+  const RigRadiometry& r = b.radiometry;
+  auto attribute = [](const std::string& name, const std::string& value) {
+    return " " + name + "=\"" + value + "\"\n";
+  };
+  auto real = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.17g", v);
+    return std::string(text);
+  };
+  std::string out =
+      "<x:xmpmeta xmlns:x=\"adobe:ns:meta/\"><rdf:RDF "
+      "xmlns:rdf=\"http://www.w3.org/1999/02/22-rdf-syntax-ns#\">\n"
+      "<rdf:Description rdf:about=\"\" xmlns:Camera=\"http://pix4d.com/camera/1.0/\"\n"
+      " xmlns:MicaSense=\"http://micasense.com/MicaSense/1.0/\"\n";
+  out += attribute("Camera:BandName", b.band_name);
+  out += attribute("Camera:CentralWavelength", real(b.centre_nm));
+  out += attribute("Camera:WavelengthFWHM", real(b.fwhm_nm));
+  out += attribute("Camera:RigCameraIndex", std::to_string(b.rig_index));
+  if (!b.capture_id.empty()) out += attribute("MicaSense:CaptureId", b.capture_id);
+  if (b.focal_length_mm > 0)
+    out += attribute("Camera:PerspectiveFocalLength", real(b.focal_length_mm));
+  if (!b.principal_point_mm.empty())
+    out += attribute("Camera:PrincipalPoint", joined(b.principal_point_mm));
+  if (!b.rig_relatives_deg.empty())
+    out += attribute("Camera:RigRelatives", joined(b.rig_relatives_deg));
+  if (r.irradiance > 0) {
+    out += attribute("Camera:" + (r.irradiance_tag.empty() ? std::string("SpectralIrradiance")
+                                                           : r.irradiance_tag),
+                     real(r.irradiance));
+    out += attribute("Camera:IrradianceScaleToSIUnits", "1");
+  }
+  out += ">\n";
+  out += seq("PerspectiveDistortion", b.distortion);
+  out += seq("RadiometricCalibration", r.calibration);
+  out += seq("VignettingCenter", r.vignetting_centre_px);
+  out += seq("VignettingPolynomial", r.vignetting_polynomial);
+  return out + "</rdf:Description></rdf:RDF></x:xmpmeta>";
+}
+
+}  // namespace
+
+void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts) {
+  core::require(counts.dim() == 2, image.file, "band counts must be [H, W]");
+  const uint32_t height = uint32_t(counts.size(0)), width = uint32_t(counts.size(1));
+  const torch::Tensor values =
+      counts.to(torch::kDouble).round().clamp(0, 65535).to(torch::kInt32).contiguous();
+  const int32_t* v = values.data_ptr<int32_t>();
+  std::string error;
+  TIFF* tif = open_tiff_quietly(image.file, "w", &error);
+  if (!tif)
+    throw core::Error(image.file, "cannot be written" + (error.empty() ? "" : " (" + error + ")"));
+  const RigRadiometry& r = image.radiometry;
+  const std::string xmp = xmp_of(image);
+  TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, width);
+  TIFFSetField(tif, TIFFTAG_IMAGELENGTH, height);
+  TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, uint16_t(16));
+  TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, uint16_t(1));
+  TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+  TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+  TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, height);
+  TIFFSetField(tif, TIFFTAG_XMLPACKET, uint32_t(xmp.size()), xmp.data());
+  if (r.has_black_level) {
+    const float levels[4] = {float(r.black_level), float(r.black_level), float(r.black_level),
+                             float(r.black_level)};
+    TIFFSetField(tif, TIFFTAG_BLACKLEVEL, uint16_t(4), levels);
+  }
+  const bool exif = r.exposure_s > 0 || r.iso_speed > 0;
+  if (exif) TIFFSetField(tif, TIFFTAG_EXIFIFD, uint64_t(0));  // its place; filled in below
+  std::vector<uint16_t> row(width);
+  bool ok = true;
+  for (uint32_t y = 0; y < height && ok; ++y) {
+    for (uint32_t x = 0; x < width; ++x) row[x] = uint16_t(v[size_t(y) * width + x]);
+    ok = TIFFWriteScanline(tif, row.data(), y, 0) == 1;
+  }
+  ok = ok && TIFFWriteDirectory(tif) == 1;
+  if (ok && exif) {
+    uint64_t offset = 0;
+    ok = TIFFCreateEXIFDirectory(tif) == 0 &&
+         TIFFSetField(tif, EXIFTAG_EXPOSURETIME, r.exposure_s) == 1 &&
+         TIFFSetField(tif, EXIFTAG_ISOSPEED, uint32_t(std::lround(r.iso_speed))) == 1 &&
+         TIFFWriteCustomDirectory(tif, &offset) == 1 && TIFFSetDirectory(tif, 0) == 1 &&
+         TIFFSetField(tif, TIFFTAG_EXIFIFD, offset) == 1 && TIFFRewriteDirectory(tif) == 1;
+  }
+  TIFFClose(tif);
+  if (!ok) {
+    std::error_code ec;
+    fs::remove(image.file, ec);
+    throw core::Error(image.file, "cannot be written" + (error.empty() ? "" : " (" + error + ")"));
+  }
 }
 
 double rig_relative_angle_deg(const std::vector<double>& angles_deg) {

@@ -3,10 +3,14 @@
 // writes into each file (MicaSense RedEdge / Altum layout: Camera:BandName,
 // Camera:CentralWavelength, Camera:RigCameraIndex, MicaSense:CaptureId, ...).
 //
-// This is the reading and checking half of issue 31: which band each file
-// holds, through which camera, in which capture. Radiometry (EXIF exposure,
-// gain, black level) and placing the band cameras in a scene are not here yet.
+// Which band each file holds, through which camera, in which capture, and
+// the radiometric metadata (EXIF exposure, gain, black level; XMP
+// calibration, vignetting, DLS irradiance) that io/rig/rig_radiometry.h turns
+// into radiance and reflectance. Placing the band cameras in a scene is not
+// here yet (issue 31).
 #pragma once
+#include <torch/torch.h>
+
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -14,7 +18,27 @@
 
 namespace ddhgs::io {
 
-// One band image and what its XMP says about it.
+// What a band image's metadata says about turning its counts into radiance
+// (MicaSense's published model; see io/rig/rig_radiometry.h). Each field is
+// empty or 0 when the file does not give it.
+struct RigRadiometry {
+  double black_level = 0;                    // EXIF BlackLevel (the mean of its values)
+  bool has_black_level = false;              // the tag was present
+  double exposure_s = 0;                     // EXIF ExposureTime, seconds
+  double iso_speed = 0;                      // EXIF ISOSpeed (or ISOSpeedRatings); gain = ISO / 100
+  std::vector<double> calibration;           // XMP RadiometricCalibration a1, a2, a3
+  std::vector<double> vignetting_centre_px;  // XMP VignettingCenter x, y
+  std::vector<double> vignetting_polynomial;  // XMP VignettingPolynomial k0, k1, ...
+  // Downwelling light sensor: W/m^2/nm after IrradianceScaleToSIUnits, from
+  // HorizontalIrradiance where the sensor gives it, else SpectralIrradiance
+  // (else Irradiance); irradiance_tag names the one used.
+  double irradiance = 0;
+  std::string irradiance_tag;
+
+  double gain() const { return iso_speed / 100; }
+};
+
+// One band image and what its XMP and EXIF say about it.
 struct RigBandImage {
   std::filesystem::path file;
   std::string capture_id;                  // MicaSense:CaptureId: the files of one trigger
@@ -30,6 +54,7 @@ struct RigBandImage {
   std::vector<double> rig_relatives_deg;
   int64_t width = 0, height = 0;
   int bits = 0;  // bits per sample
+  RigRadiometry radiometry;
 };
 
 // A property of an XMP packet, in either form XMP allows: an attribute
@@ -61,6 +86,14 @@ std::vector<RigCapture> read_rig_captures(const std::filesystem::path& dir);
 // True when dir holds TIFF files (any depth) but no transforms.json or COLMAP
 // model at its top: a folder of rig captures rather than a scene.
 bool looks_like_rig_captures(const std::filesystem::path& dir);
+
+// Writes image.file as a rig band image: a single-band 16-bit TIFF of
+// `counts` ([H, W], rounded and clamped to 0..65535) whose XMP and EXIF carry
+// every field of `image` in the MicaSense layout this file reads (the
+// irradiance under image.radiometry.irradiance_tag, SpectralIrradiance when
+// empty, with IrradianceScaleToSIUnits 1). For synthetic rig captures and
+// tests. core::Error naming the file when it cannot be written.
+void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts);
 
 // The rotation angle, degrees, of a band camera against the reference camera
 // from its three rig-relative angles (composed about x, y and z).
