@@ -97,7 +97,13 @@ Action setup(CLI::App& parent) {
     std::vector<int> views = eval::split_views(*run.scene, args->split);
     eval::EvalOptions options;
     options.fps_repeats = args->fps_repeats;
-    if (args->align_poses) options.align = args->align;
+    if (args->align_poses) {
+      if (run.scene->band_per_view())
+        throw core::Error("--align-poses",
+                          "aligns a view on all of its bands; the views of this band-per-view "
+                          "scene hold one or a few");
+      options.align = args->align;
+    }
     if (auto backdrop = io::masked_backdrop(*run.scene, run.scene->train)) {
       options.backdrop = *backdrop;
       core::log_info("the views are masked to a uniform backdrop (" +

@@ -106,6 +106,8 @@ SpectraCheck spectra_of(const io::Scene& scene, const io::SceneReport& r) {
   if (scene.bands() < 2) return {std::nullopt, 0, 0, "one band"};
   if (!r.errors.empty()) return {std::nullopt, 0, 0, "views fail to load"};
   if (scene.train.empty()) return {std::nullopt, 0, 0, "no training views"};
+  if (scene.band_per_view())
+    return {std::nullopt, 0, 0, "a band-per-view scene: no view holds whole spectra"};
   try {
     const io::SpectraSample sample = io::sample_spectra(scene, kPcaViews);
     return {core::spectral_pca(sample.spectra), sample.views, sample.spectra.size(0), "",

@@ -87,15 +87,19 @@ torch::Tensor render_view(const io::Scene& scene, const model::Gaussians& gaussi
 ViewMetrics measure_view(const io::Scene& scene, int view, const torch::Tensor& image,
                          const torch::Tensor& backdrop) {
   torch::NoGradGuard no_grad;
-  const torch::Tensor measured = image.detach().clamp(0, 1);
+  // A view of a band-per-view scene is measured on the bands it holds.
+  const torch::Tensor measured = scene.view_slice(view, image.detach().clamp(0, 1));
+  const torch::Tensor own_backdrop =
+      backdrop.defined() ? scene.view_slice(view, backdrop) : backdrop;
+  const std::vector<int>& bands = scene.views[size_t(view)].bands;
   ViewMetrics m;
   const torch::Tensor stored = scene.image(view);
-  m.stored = compute_metrics(measured, stored);
-  if (backdrop.defined()) m.stored_object = measure_object(measured, stored, backdrop);
+  m.stored = on_scene_bands(compute_metrics(measured, stored), bands, scene.bands());
+  if (backdrop.defined()) m.stored_object = measure_object(measured, stored, own_backdrop);
   const torch::Tensor clean = scene.clean_image(view);
   if (clean.defined()) {
-    m.clean = compute_metrics(measured, clean);
-    if (backdrop.defined()) m.clean_object = measure_object(measured, clean, backdrop);
+    m.clean = on_scene_bands(compute_metrics(measured, clean), bands, scene.bands());
+    if (backdrop.defined()) m.clean_object = measure_object(measured, clean, own_backdrop);
   }
   return m;
 }

@@ -191,27 +191,54 @@ ImageMetrics compute_metrics(const torch::Tensor& pred, const torch::Tensor& gt)
 ImageMetrics mean_metrics(const std::vector<ImageMetrics>& views) {
   ImageMetrics mean;
   if (views.empty()) return mean;
-  mean.band_psnr_db.assign(views.front().band_psnr_db.size(), 0.0);
-  mean.band_rmse.assign(views.front().band_rmse.size(), 0.0);
+  // NaN marks a value a view does not have (a band it does not hold, the
+  // spectral angle of a one-band view): each mean is over the views that do.
+  auto average = [](double sum, double count) { return count > 0 ? sum / count : std::nan(""); };
+  auto add = [](double value, double* sum, double* count) {
+    if (std::isnan(value)) return;
+    *sum += value;
+    *count += 1;
+  };
+  const size_t bands = views.front().band_psnr_db.size();
+  std::vector<double> psnr_sum(bands, 0), psnr_n(bands, 0), rmse_sum(bands, 0), rmse_n(bands, 0);
+  double sums[4] = {0, 0, 0, 0}, counts[4] = {0, 0, 0, 0};
   for (const ImageMetrics& v : views) {
-    core::require(v.band_psnr_db.size() == mean.band_psnr_db.size() &&
-                      v.band_rmse.size() == mean.band_rmse.size(),
+    core::require(v.band_psnr_db.size() == bands && v.band_rmse.size() == bands,
                   "metrics: views with different band counts cannot be averaged");
-    mean.psnr_db += v.psnr_db;
-    mean.ssim += v.ssim;
-    mean.sam_rad += v.sam_rad;
-    mean.rmse += v.rmse;
-    for (size_t b = 0; b < v.band_psnr_db.size(); ++b) mean.band_psnr_db[b] += v.band_psnr_db[b];
-    for (size_t b = 0; b < v.band_rmse.size(); ++b) mean.band_rmse[b] += v.band_rmse[b];
+    add(v.psnr_db, &sums[0], &counts[0]);
+    add(v.ssim, &sums[1], &counts[1]);
+    add(v.sam_rad, &sums[2], &counts[2]);
+    add(v.rmse, &sums[3], &counts[3]);
+    for (size_t b = 0; b < bands; ++b) {
+      add(v.band_psnr_db[b], &psnr_sum[b], &psnr_n[b]);
+      add(v.band_rmse[b], &rmse_sum[b], &rmse_n[b]);
+    }
   }
-  double n = double(views.size());
-  mean.psnr_db /= n;
-  mean.ssim /= n;
-  mean.sam_rad /= n;
-  mean.rmse /= n;
-  for (double& b : mean.band_psnr_db) b /= n;
-  for (double& b : mean.band_rmse) b /= n;
+  mean.psnr_db = average(sums[0], counts[0]);
+  mean.ssim = average(sums[1], counts[1]);
+  mean.sam_rad = average(sums[2], counts[2]);
+  mean.rmse = average(sums[3], counts[3]);
+  for (size_t b = 0; b < bands; ++b) {
+    mean.band_psnr_db.push_back(average(psnr_sum[b], psnr_n[b]));
+    mean.band_rmse.push_back(average(rmse_sum[b], rmse_n[b]));
+  }
   return mean;
+}
+
+ImageMetrics on_scene_bands(ImageMetrics m, const std::vector<int>& bands, int64_t scene_bands) {
+  if (bands.empty()) return m;
+  core::require(m.band_psnr_db.size() == bands.size(),
+                "metrics: a view's band list and its per-band values differ in length");
+  std::vector<double> psnr(size_t(scene_bands), std::nan("")),
+      rmse(size_t(scene_bands), std::nan(""));
+  for (size_t j = 0; j < bands.size(); ++j) {
+    psnr[size_t(bands[j])] = m.band_psnr_db[j];
+    rmse[size_t(bands[j])] = m.band_rmse[j];
+  }
+  m.band_psnr_db = psnr;
+  m.band_rmse = rmse;
+  if (bands.size() < 2) m.sam_rad = std::nan("");  // no spectrum, no angle
+  return m;
 }
 
 std::optional<RegionMetrics> region_metrics(const torch::Tensor& pred, const torch::Tensor& gt,

@@ -61,8 +61,16 @@ struct ImageMetrics {
 ImageMetrics compute_metrics(const torch::Tensor& pred,  // [H, W, N]
                              const torch::Tensor& gt);   // [H, W, N]
 
-// Element-wise mean over views (per-band values averaged band by band).
+// Element-wise mean over views (per-band values averaged band by band). A
+// NaN value (a band the view does not hold) is left out of its mean; a mean
+// with no values is NaN.
 ImageMetrics mean_metrics(const std::vector<ImageMetrics>& views);
+
+// The metrics of a view that holds some of the scene's bands (io::View::bands,
+// ascending), spread onto the scene's band grid: NaN per-band values for the
+// bands it does not hold, and a NaN spectral angle when it holds one band.
+// Unchanged when `bands` is empty (the view holds every band).
+ImageMetrics on_scene_bands(ImageMetrics m, const std::vector<int>& bands, int64_t scene_bands);
 
 // PSNR and SAM over one region of a view: the MSE over the region's pixels
 // and every band (capped as psnr_db is), and the spectral angle averaged over

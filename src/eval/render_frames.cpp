@@ -40,6 +40,10 @@ nlohmann::json number_or_null(double value) {
 int render_index_frames(const io::Scene& scene, const model::Gaussians& model,
                         const torch::Tensor& background, const std::vector<Frame>& frames,
                         const RenderOptions& options, const fs::path& out_dir) {
+  if (options.diff && scene.band_per_view())
+    throw core::Error("--diff",
+                      "compares every band of a view; the views of this band-per-view "
+                      "scene hold one or a few (ddhgs eval measures them per band)");
   const VegetationIndex& index = *options.index;
   const torch::Tensor map = index_band_map(index, scene.wavelengths_nm);  // [2, N]
   const std::string& label = index.name;
@@ -137,6 +141,10 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
                   const torch::Tensor& background, const std::vector<Frame>& frames,
                   const RenderOptions& options, const fs::path& out_dir) {
   torch::NoGradGuard no_grad;
+  if (options.diff && scene.band_per_view())
+    throw core::Error("--diff",
+                      "compares every band of a view; the views of this band-per-view "
+                      "scene hold one or a few (ddhgs eval measures them per band)");
   const bool mapped = options.band_map.defined();
   const std::vector<double>& wavelengths = mapped ? options.wavelengths_nm : scene.wavelengths_nm;
   model::Gaussians model = gaussians;  // handles to the same tensors

@@ -245,6 +245,12 @@ ViewResults render_and_measure(const fs::path& stage, const io::Scene& scene,
     out.stored.per_view.push_back(m.stored);
     if (m.clean) out.clean.per_view.push_back(*m.clean);
     const std::string name = scene.views[size_t(v)].name;
+    // A view of a band-per-view scene has no whole-spectrum truth to picture
+    // beside the render: it is measured, not drawn.
+    if (!scene.views[size_t(v)].bands.empty()) {
+      bar.update(int64_t(i + 1));
+      continue;
+    }
     if (int(i) < options.max_views)
       out.figure_views.push_back(write_view_figures(stage, name, render,
                                                     clean_truth.defined() ? clean_truth : captured,

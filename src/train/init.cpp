@@ -123,17 +123,22 @@ std::pair<torch::Tensor, torch::Tensor> colours_from_views(const io::Scene& scen
                                                            const torch::Tensor& xyz) {
   const int64_t p = xyz.size(0), n = scene.bands();
   auto colours = torch::zeros({p, n}, torch::kFloat32);
-  auto seen = torch::zeros({p}, torch::kBool);
+  auto seen = torch::zeros({p, n}, torch::kBool);
   auto points = xyz.to(torch::kFloat32).contiguous();
   auto xa = points.accessor<float, 2>();
-  auto sa = seen.accessor<bool, 1>();
+  auto sa = seen.accessor<bool, 2>();
   for (int v : views) {
     const core::Camera& cam = scene.views[v].camera;
     const auto& k = cam.intrinsics;
-    torch::Tensor image = scene.image(v);  // [H, W, N]
+    torch::Tensor image = scene.image(v);  // [H, W, the view's bands]
+    const std::vector<int>& held = scene.views[v].bands;
+    std::vector<int64_t> bands(held.begin(), held.end());
+    if (bands.empty())
+      for (int64_t b = 0; b < n; ++b) bands.push_back(b);
     std::vector<int64_t> rows, pixels;
     for (int64_t i = 0; i < p; ++i) {
-      if (sa[i]) continue;
+      // Each band of a point takes its colour from the first view that sees it.
+      if (std::all_of(bands.begin(), bands.end(), [&](int64_t b) { return sa[i][b]; })) continue;
       const core::Vec3 q = cam.world_to_camera.transform_point(
           core::Vec3{double(xa[i][0]), double(xa[i][1]), double(xa[i][2])});
       if (q.z <= 1e-6) continue;
@@ -141,12 +146,20 @@ std::pair<torch::Tensor, torch::Tensor> colours_from_views(const io::Scene& scen
       if (u < 0 || w < 0 || u >= k.width || w >= k.height) continue;
       rows.push_back(i);
       pixels.push_back(int64_t(w) * image.size(1) + int64_t(u));
-      sa[i] = true;
     }
     if (rows.empty()) continue;
-    auto row_t = torch::tensor(rows, torch::kInt64);
-    auto values = image.reshape({-1, n}).index_select(0, torch::tensor(pixels, torch::kInt64));
-    colours.index_copy_(0, row_t, values);
+    const auto row_t = torch::tensor(rows, torch::kInt64);
+    const auto band_t = torch::tensor(bands, torch::kInt64);
+    const auto values = image.reshape({-1, image.size(2)})
+                            .index_select(0, torch::tensor(pixels, torch::kInt64));  // [R, b]
+    // Only the bands not yet seen change.
+    const auto old = colours.index_select(0, row_t).index_select(1, band_t);
+    const auto fresh = ~seen.index_select(0, row_t).index_select(1, band_t);
+    const auto merged = torch::where(fresh, values, old);
+    for (size_t j = 0; j < bands.size(); ++j)
+      colours.select(1, bands[j]).index_copy_(0, row_t, merged.select(1, int64_t(j)).contiguous());
+    for (int64_t i : rows)
+      for (int64_t b : bands) sa[i][b] = true;
   }
   return {colours, seen};
 }
@@ -173,10 +186,12 @@ model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions&
     } else if (n == 3 && rgb.defined()) {
       values = rgb.to(torch::kFloat32) / 255.0f;
     } else {
-      auto [colours, seen] =
-          colours_from_views(scene, spread(scene.train, options.colour_views), xyz);
-      values = torch::where(seen.unsqueeze(1), colours, torch::full_like(colours, 0.5f));
-      const int64_t unseen = xyz.size(0) - seen.sum().item<int64_t>();
+      auto [colours, seen] = colours_from_views(
+          scene,
+          // A band-per-view scene's sample would miss bands: every view.
+          scene.band_per_view() ? scene.train : spread(scene.train, options.colour_views), xyz);
+      values = torch::where(seen, colours, torch::full_like(colours, 0.5f));
+      const int64_t unseen = xyz.size(0) - seen.any(1).sum().item<int64_t>();
       if (unseen > 0)
         core::log_info(std::to_string(unseen) + " of " + std::to_string(xyz.size(0)) +
                        " points are outside the sampled views; they start grey");
@@ -236,6 +251,18 @@ model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_ran
     return {};
   }
   if (spectral_rank == 0) return {};
+  // The basis comes from whole pixel spectra, which no view of a
+  // band-per-view scene holds.
+  if (scene.band_per_view()) {
+    if (spectral_rank > 0)
+      throw core::Error(scene.root,
+                        "is a band-per-view scene (each view holds some of the bands): its pixels "
+                        "give no whole spectra for a subspace basis; use model.spectral_rank=0");
+    core::log_info(
+        "colour model: one SH set per band (a band-per-view scene has no whole "
+        "spectra for a subspace basis)");
+    return {};
+  }
   if (spectral_rank > n)
     throw core::Error(scene.root, "model.spectral_rank " + std::to_string(spectral_rank) +
                                       " is above the scene's " + std::to_string(n) +

@@ -57,7 +57,9 @@ torch::Tensor sample_view_volume(const io::Scene& scene, const std::vector<int>&
                                  int64_t count, at::Generator& generator);
 
 // Per-point values from the first sampled view that sees each point (pixel the
-// point projects to, in front of the camera): [P, N], and a [P] bool "seen" mask.
+// point projects to, in front of the camera): [P, N], and a [P, N] bool "seen"
+// mask. In a band-per-view scene each band comes from the first view that
+// holds it and sees the point.
 std::pair<torch::Tensor, torch::Tensor> colours_from_views(const io::Scene& scene,
                                                            const std::vector<int>& views,
                                                            const torch::Tensor& xyz);  // [P, 3]

@@ -141,6 +141,13 @@ void Trainer::build_modules() {
   }
   const DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());
   if (diffusion.enabled()) {
+    // The denoiser sees every band of a view at once; a view that holds one
+    // band has no such image.
+    if (scene_->band_per_view())
+      throw core::Error(scene_->root,
+                        "is a band-per-view scene (each view holds some of the bands); the "
+                        "diffusion stage needs every band of a view: train it with "
+                        "loss.diffusion=0");
     diffusion_ =
         std::make_unique<DiffusionTerm>(diffusion, mix_seed(config_.seed, kDenoiserInitStream));
     add_module("denoiser", diffusion_->denoiser().unet.ptr(), diffusion.lr);
@@ -310,10 +317,12 @@ json Trainer::step(int64_t iteration) {
     if (g.sh_rest.numel() > 0) rest_step = state_.adam.row_step("sh_rest");
     out = render_training_view(view, sink, rest_step);
   }
+  // A view of a band-per-view scene supervises only the bands it holds.
+  const torch::Tensor rendered = scene_->view_slice(view, out.image);
   LossValues loss;
   {
     core::StageScope stage("losses (other)");
-    loss = evaluate_losses(losses_, {out.image, target, view, iteration,
+    loss = evaluate_losses(losses_, {rendered, target, view, iteration,
                                      mix_seed(config_.seed, kTermStream + uint64_t(iteration))});
   }
   {
@@ -354,7 +363,7 @@ json Trainer::step(int64_t iteration) {
   core::StageScope stage("metrics");
   json record = {{"iter", iteration}, {"loss", loss.total.item<double>()}};
   for (const auto& [name, value] : loss.terms) record[name] = value;
-  record["train_psnr"] = psnr(out.image, target);
+  record["train_psnr"] = psnr(rendered, target);
   record["num_gaussians"] = g.size();
   record["densify_added"] = state_.counters.densify_added;
   record["densify_removed"] = state_.counters.densify_removed;
@@ -405,8 +414,8 @@ json Trainer::test_psnr() {
   double stored = 0, clean = 0;
   size_t cleans = 0;
   for (int v : scene_->test) {
-    const torch::Tensor image =
-        eval::render_view(*scene_, state_.gaussians, background_, v, offsets).clamp(0, 1);
+    const torch::Tensor image = scene_->view_slice(
+        v, eval::render_view(*scene_, state_.gaussians, background_, v, offsets).clamp(0, 1));
     stored += eval::psnr_db(image, scene_->image(v));
     const torch::Tensor truth = scene_->clean_image(v);
     if (truth.defined()) {

@@ -176,6 +176,28 @@ TEST(Metrics, MeanOverViews) {
   EXPECT_THROW(mean_metrics({a, c}), core::Error);
 }
 
+// Views of a band-per-view scene: each view's per-band values land on its
+// own bands, and each band's mean is over the views that hold it.
+TEST(Metrics, MeanOverViewsThatHoldSomeBands) {
+  const ImageMetrics one{30, 0.9, 0, 0.03, {30}, {0.03}};             // holds band 2
+  const ImageMetrics two{20, 0.7, 0.2, 0.1, {24, 18}, {0.06, 0.12}};  // bands 0 and 2
+  const ImageMetrics a = on_scene_bands(one, {2}, 3);
+  const ImageMetrics b = on_scene_bands(two, {0, 2}, 3);
+  EXPECT_TRUE(std::isnan(a.band_psnr_db[0]) && std::isnan(a.band_psnr_db[1]));
+  EXPECT_EQ(a.band_psnr_db[2], 30);
+  EXPECT_TRUE(std::isnan(a.sam_rad));  // one band: no spectral angle
+  EXPECT_EQ(b.sam_rad, 0.2);
+  const ImageMetrics m = mean_metrics({a, b});
+  EXPECT_DOUBLE_EQ(m.psnr_db, 25);
+  EXPECT_DOUBLE_EQ(m.sam_rad, 0.2);  // from the view that has one
+  EXPECT_EQ(m.band_psnr_db[0], 24);
+  EXPECT_TRUE(std::isnan(m.band_psnr_db[1]));  // no view holds band 1
+  EXPECT_EQ(m.band_psnr_db[2], 24);            // (30 + 18) / 2
+  EXPECT_DOUBLE_EQ(m.band_rmse[2], 0.075);
+  // Unchanged for a view that holds every band.
+  EXPECT_EQ(on_scene_bands(two, {}, 2).band_psnr_db, two.band_psnr_db);
+}
+
 TEST(Metrics, RegionMetricsCoverTheMaskedPixelsOnly) {
   // 2 x 2 pixels, 2 bands; the mask takes the top row.
   const torch::Tensor gt = torch::full({2, 2, 2}, 0.5, torch::kDouble);

@@ -399,3 +399,91 @@ TEST(Dataset, NoLayoutIsAnError) {
 
 }  // namespace
 }  // namespace ddhgs::io
+
+namespace ddhgs::io {
+namespace {
+
+// A band-per-view scene: frames name the bands their files hold. Views come
+// back with their bands in scene order (a file may list them in any order),
+// images narrowed to those bands, and band selection applied per view.
+TEST(Dataset, BandPerViewScenes) {
+  const fs::path root = test::temp_dir("band_per_view");
+  fs::create_directories(root / "bands");
+  TransformsFile file;
+  file.wavelengths_nm = {400, 500, 600, 700};
+  // r_00 holds band 2; r_01 bands 3 and 0 (in that order); r_02 every band; r_03 band 1.
+  const std::vector<std::vector<int>> held = {{2}, {3, 0}, {}, {1}};
+  for (int i = 0; i < int(held.size()); ++i) {
+    TransformsFrame f;
+    f.hyperspectral_file_path = "bands/r_0" + std::to_string(i) + ".npy";
+    f.intrinsics.fx = f.intrinsics.fy = 10;
+    f.intrinsics.cx = 4;
+    f.intrinsics.cy = 3;
+    f.intrinsics.width = 8;
+    f.intrinsics.height = 6;
+    f.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(w2c_of(i));
+    f.bands = held[size_t(i)];
+    write_npy(root / f.hyperspectral_file_path,
+              pattern(i, 6, 8, held[size_t(i)].empty() ? 4 : int64_t(held[size_t(i)].size())));
+    file.frames.push_back(f);
+  }
+  file.train_files = {"bands/r_00.npy", "bands/r_01.npy", "bands/r_02.npy"};
+  file.test_files = {"bands/r_03.npy"};
+  write_transforms(root / "transforms.json", file);
+  EXPECT_EQ(read_transforms(root / "transforms.json").frames[1].bands, (std::vector<int>{3, 0}));
+
+  auto scene = load_scene(root);
+  EXPECT_TRUE(scene->band_per_view());
+  EXPECT_EQ(scene->bands(), 4);
+  EXPECT_EQ(scene->views[0].bands, (std::vector<int>{2}));
+  EXPECT_EQ(scene->views[1].bands, (std::vector<int>{0, 3}));
+  EXPECT_TRUE(scene->views[2].bands.empty());
+  const float scale = 255;
+  EXPECT_TRUE(torch::equal(scene->image(0), pattern(0, 6, 8, 1).to(torch::kFloat) / scale));
+  // Scene order: the file's second band (band 0) first.
+  const torch::Tensor file_1 = pattern(1, 6, 8, 2).to(torch::kFloat) / scale;
+  EXPECT_TRUE(torch::equal(scene->image(1), file_1.flip(2)));
+  EXPECT_EQ(scene->image(2).size(2), 4);
+  // view_slice narrows a render the same way.
+  const torch::Tensor render = torch::arange(4, torch::kFloat).view({1, 1, 4}).expand({6, 8, 4});
+  EXPECT_TRUE(torch::equal(scene->view_slice(1, render)[0][0], torch::tensor({0.0f, 3.0f})));
+  EXPECT_TRUE(torch::equal(scene->view_slice(2, render), render));
+
+  // A band range keeps each view's bands inside it; a view left with none is left out.
+  LoadOptions range;
+  range.band_min_nm = 550;
+  auto upper = load_scene(root, range);
+  ASSERT_EQ(upper->bands(), 2);        // 600, 700
+  ASSERT_EQ(upper->views.size(), 3u);  // r_03 (500 nm only) is left out
+  EXPECT_EQ(upper->views[0].bands, (std::vector<int>{0}));
+  EXPECT_EQ(upper->views[1].bands, (std::vector<int>{1}));
+  EXPECT_TRUE(torch::equal(upper->image(1), file_1.select(2, 0).unsqueeze(2)));
+  EXPECT_TRUE(contains(upper->notes.front(), "1 view(s) hold no band in the selected range"));
+
+  LoadOptions binned;
+  binned.bin = 2;
+  EXPECT_TRUE(contains(error_of([&] { load_scene(root, binned); }), "cannot be binned"));
+
+  // A file that holds another number of bands than its frame names.
+  write_npy(root / "bands" / "r_03.npy", pattern(3, 6, 8, 2));
+  auto wrong = load_scene(root);
+  const std::string count = error_of([&] { wrong->image(3); });
+  EXPECT_TRUE(contains(count, "r_03.npy") && contains(count, "has 2 bands, but its frame names 1"))
+      << count;
+  write_npy(root / "bands" / "r_03.npy", pattern(3, 6, 8, 1));
+
+  // Bands without a wavelength list, or past it.
+  std::string text = read_file(root / "transforms.json");
+  text.replace(text.find("\"wavelengths\""), 13, "\"wavelengths_\"");
+  write_file_atomically(root / "transforms.json", text);
+  const std::string no_list = error_of([&] { load_scene(root); });
+  EXPECT_TRUE(contains(no_list, "no top-level \"wavelengths\"")) << no_list;
+  file.frames[3].bands = {4};
+  write_transforms(root / "transforms.json", file);
+  const std::string past = error_of([&] { load_scene(root); });
+  EXPECT_TRUE(contains(past, "frames[3].bands") && contains(past, "past the 4 wavelengths"))
+      << past;
+}
+
+}  // namespace
+}  // namespace ddhgs::io

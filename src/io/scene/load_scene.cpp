@@ -29,6 +29,9 @@ struct Candidate {
   fs::path data_path;  // empty when missing on disk
   fs::path clean_path;
   std::vector<std::string> split_keys;  // normalised relative paths
+  std::vector<int> bands;               // source bands the file holds (empty: all)
+  // After band selection: the scene band and file band of each one kept.
+  std::vector<int> scene_bands, file_bands;
 };
 
 struct Found {
@@ -146,6 +149,7 @@ Found from_transforms(const fs::path& root, const LoadOptions& options) {
     if (!orthonormal(f.camera_to_world_gl.rotation())) ++repaired;
     c.camera.intrinsics = f.intrinsics;
     c.camera.world_to_camera = core::opengl_c2w_to_opencv_w2c(f.camera_to_world_gl);
+    c.bands = f.bands;
     c.data_path = existing_data(root, rel, options.downscale);
     if (c.data_path.empty())
       found.warnings.push_back("frames[" + std::to_string(i) + "]: missing file " +
@@ -350,9 +354,20 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
     throw core::Error(origin, "none of the " + std::to_string(found.views.size()) +
                                   " listed views has its file on disk");
 
+  // A band-per-view scene: frames name the bands their files hold.
+  const bool per_view =
+      std::any_of(kept.begin(), kept.end(), [](const Candidate& c) { return !c.bands.empty(); });
+  if (per_view && (found.rgb || options.bin > 1 || options.band_step > 1))
+    throw core::Error(origin, std::string("frames name the bands their files hold (a band-per-view "
+                                          "scene), which ") +
+                                  (found.rgb         ? "--rgb cannot load"
+                                   : options.bin > 1 ? "cannot be binned (--bin)"
+                                                     : "cannot hold bands out (data.band_step)"));
   CubeInfo first = probe_cube(kept.front().data_path, CubeReadOptions{options.layout});
   scene->stored_type = first.type;
-  scene->source_bands = first.bands;
+  scene->source_bands = per_view ? int64_t(found.wavelengths_nm.size()) : first.bands;
+  if (per_view && !kept.front().bands.empty())
+    require_named_bands(kept.front().data_path, first.bands, int64_t(kept.front().bands.size()));
   // LoadOptions::scale, then the dataset's scale, then the cube's own (ENVI's
   // reflectance scale factor), then the sample type's maximum.
   scene->scale = options.scale        ? *options.scale
@@ -363,8 +378,37 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
 
   select_bands(*scene,
                source_wavelengths(*scene, found.rgb, found.wavelengths_nm, first.wavelengths_nm,
-                                  first.bands, origin, kept.front().data_path),
+                                  scene->source_bands, origin, kept.front().data_path),
                found.rgb, origin);
+  const fs::path first_path = kept.front().data_path;
+  if (per_view) {
+    // Each view keeps the selected bands its file holds, in scene order.
+    std::vector<int> scene_band_of(size_t(scene->source_bands), -1);
+    for (size_t b = 0; b < scene->band_index.size(); ++b)
+      scene_band_of[size_t(scene->band_index[b])] = int(b);
+    std::vector<Candidate> with_bands;
+    for (Candidate& c : kept) {
+      if (c.bands.empty()) {
+        with_bands.push_back(std::move(c));
+        continue;
+      }
+      std::vector<std::pair<int, int>> pairs;  // scene band, file band
+      for (size_t j = 0; j < c.bands.size(); ++j)
+        if (scene_band_of[size_t(c.bands[j])] >= 0)
+          pairs.emplace_back(scene_band_of[size_t(c.bands[j])], int(j));
+      std::sort(pairs.begin(), pairs.end());
+      for (const auto& [scene_band, file_band] : pairs) {
+        c.scene_bands.push_back(scene_band);
+        c.file_bands.push_back(file_band);
+      }
+      if (!pairs.empty()) with_bands.push_back(std::move(c));
+    }
+    if (with_bands.size() < kept.size())
+      scene->notes.push_back(std::to_string(kept.size() - with_bands.size()) +
+                             " view(s) hold no band in the selected range; left out");
+    if (with_bands.empty()) throw core::Error(origin, "no view holds a band in the selected range");
+    kept = std::move(with_bands);
+  }
 
   // Spectra per point are the cubes' bands (before --band-range and --bin).
   const torch::Tensor& spectra = found.points.spectra;
@@ -393,10 +437,14 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
     v.camera.intrinsics = c.camera.intrinsics.downscaled(options.downscale);
     v.data_path = c.data_path;
     v.clean_path = c.clean_path;
+    v.bands = c.scene_bands;
+    v.file_bands = c.file_bands;
+    v.file_band_count = int64_t(c.bands.size());
     scene->views.push_back(std::move(v));
   }
-  area_factor(kept.front().data_path, first.height, first.width,
-              scene->views.front().camera.intrinsics, options.downscale);
+  if (kept.front().data_path == first_path)
+    area_factor(first_path, first.height, first.width, scene->views.front().camera.intrinsics,
+                options.downscale);
   undistort_cameras(*scene, origin);
 
   assign_split(*scene, found, kept, origin);

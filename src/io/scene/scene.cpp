@@ -73,6 +73,12 @@ void require_bands(const fs::path& path, int64_t bands, int64_t expected) {
                                 std::to_string(expected) + " like the scene's other views");
 }
 
+void require_named_bands(const fs::path& path, int64_t bands, int64_t named) {
+  if (bands != named)
+    throw core::Error(path, "has " + std::to_string(bands) + " bands, but its frame names " +
+                                std::to_string(named) + " (\"bands\" in transforms.json)");
+}
+
 int area_factor(const fs::path& path, int64_t height, int64_t width, const core::Intrinsics& target,
                 int downscale) {
   if (height == target.height && width == target.width) return 1;
@@ -106,16 +112,41 @@ size_t Scene::view_bytes() const {
   return most * size_t(bands()) * bytes_per_sample(stored_type);
 }
 
+bool Scene::band_per_view() const {
+  return std::any_of(views.begin(), views.end(), [](const View& v) { return !v.bands.empty(); });
+}
+
+torch::Tensor Scene::view_bands(int view) const {
+  core::require(view >= 0 && view < int(views.size()), root,
+                "view index " + std::to_string(view) + " out of range");
+  const std::vector<int>& b = views[size_t(view)].bands;
+  if (b.empty()) return {};
+  return torch::tensor(std::vector<int64_t>(b.begin(), b.end()), torch::kInt64);
+}
+
+torch::Tensor Scene::view_slice(int view, const torch::Tensor& image) const {
+  const torch::Tensor index = view_bands(view);
+  return index.defined() ? image.index_select(image.dim() - 1, index) : image;
+}
+
 Cube Scene::load_view(const fs::path& path, const View& view) const {
   const core::Intrinsics& target = view.camera.intrinsics;
   Cube cube = read_cube(path, CubeReadOptions{options.layout});
-  require_bands(path, cube.bands(), source_bands);
+  const bool subset = !view.file_bands.empty();
+  if (subset)
+    require_named_bands(path, cube.bands(), view.file_band_count);
+  else
+    require_bands(path, cube.bands(), source_bands);
   int64_t h = cube.height(), w = cube.width();
   int d = area_factor(path, h, w, target, options.downscale);
   bool reduce = d > 1;
 
   torch::Tensor data = cube.data;
-  if (!is_identity(band_index, source_bands))
+  if (subset) {
+    if (!is_identity(view.file_bands, view.file_band_count))
+      data = data.index_select(
+          2, torch::tensor(std::vector<int64_t>(view.file_bands.begin(), view.file_bands.end())));
+  } else if (!is_identity(band_index, source_bands))
     data = data.index_select(
         2, torch::tensor(std::vector<int64_t>(band_index.begin(), band_index.end())));
   int bin = std::max(options.bin, 1);

@@ -47,6 +47,14 @@ struct View {
   // A camera with lens distortion: its views are undistorted to
   // camera.intrinsics as they are decoded. Null for a pinhole camera.
   std::shared_ptr<const Undistortion> undistortion;
+  // A view of a band-per-view scene (one camera per band, as on a
+  // multispectral rig) holds only some of the scene's bands: their indices,
+  // ascending. Empty: every band. Scene::image returns just these.
+  std::vector<int> bands;
+  // Internal (load_scene): the file's band of each entry of `bands`, and
+  // how many bands the file holds.
+  std::vector<int> file_bands;
+  int64_t file_band_count = 0;
 };
 
 class Scene {
@@ -63,8 +71,17 @@ class Scene {
   std::vector<std::string> notes;     // choices made while loading, worth one info line each
 
   int64_t bands() const { return int64_t(wavelengths_nm.size()); }
+  // True when some view holds only some of the bands (View::bands).
+  bool band_per_view() const;
+  // The scene bands view v holds, as an int64 index tensor into the bands of
+  // a render; undefined when it holds every band.
+  torch::Tensor view_bands(int view) const;
+  // A render or an [H, W, N] image narrowed to view v's bands, as image()
+  // returns them (unchanged when the view holds every band).
+  torch::Tensor view_slice(int view, const torch::Tensor& image) const;
   bool has_clean() const;
-  // float32 [H, W, N] in [0, 1] at the loaded resolution and bands.
+  // float32 [H, W, N] in [0, 1] at the loaded resolution and bands; for a
+  // view that holds some bands, [H, W, its band count].
   torch::Tensor image(int view) const;
   // Clean ground truth, same shape; undefined tensor when there is none.
   torch::Tensor clean_image(int view) const;
@@ -112,6 +129,8 @@ int area_factor(const std::filesystem::path& path, int64_t height, int64_t width
 
 // core::Error naming path when a cube's band count differs from the scene's.
 void require_bands(const std::filesystem::path& path, int64_t bands, int64_t expected);
+// The same for a file whose frame names its bands (View::bands).
+void require_named_bands(const std::filesystem::path& path, int64_t bands, int64_t named);
 
 // Wavelengths (nm) given to the three bands of an RGB scene.
 std::vector<double> rgb_wavelengths_nm();

@@ -25,11 +25,15 @@ void collect(std::vector<std::string>& errors, F&& check) {
   }
 }
 
-void probe_one(const Scene& scene, const fs::path& path, const core::Intrinsics& target,
+void probe_one(const Scene& scene, const View& view, const fs::path& path,
                std::vector<std::string>& errors) {
+  const core::Intrinsics& target = view.camera.intrinsics;
   collect(errors, [&] {
     CubeInfo info = probe_cube(path, CubeReadOptions{scene.options.layout});
-    require_bands(path, info.bands, scene.source_bands);
+    if (view.file_bands.empty())
+      require_bands(path, info.bands, scene.source_bands);
+    else
+      require_named_bands(path, info.bands, view.file_band_count);
     area_factor(path, info.height, info.width, target, scene.options.downscale);
   });
 }
@@ -97,10 +101,10 @@ SceneReport inspect_scene(const Scene& scene, int sample_reads) {
     size_t values = size_t(k.width) * size_t(k.height) * size_t(scene.bands());
     report.scene_bytes += values * sample_bytes;
     report.scene_bytes_f32 += values * sizeof(float);
-    probe_one(scene, v.data_path, k, report.errors);
+    probe_one(scene, v, v.data_path, report.errors);
     if (!v.clean_path.empty()) {
       ++report.clean_views;
-      probe_one(scene, v.clean_path, k, report.errors);
+      probe_one(scene, v, v.clean_path, report.errors);
     }
   }
 
@@ -128,6 +132,8 @@ SceneReport inspect_scene(const Scene& scene, int sample_reads) {
 
 SpectraSample sample_spectra(const Scene& scene, int max_views, int64_t per_view) {
   core::require(!scene.train.empty(), scene.root, "no training views to sample spectra from");
+  core::require(!scene.band_per_view(), scene.root,
+                "is a band-per-view scene: no view holds whole spectra to sample");
   const int count = std::min<int>(max_views, int(scene.train.size()));
   std::vector<torch::Tensor> samples, sigmas;
   for (int i = 0; i < count; ++i) {

@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -189,6 +190,20 @@ TransformsFile parse(const Reader& in, const json& root) {
     if (!m) in.fail(where, "missing key \"transform_matrix\"");
     frame.camera_to_world_gl = in.matrix(*m, where + ".transform_matrix");
     frame.intrinsics = read_intrinsics(in, f, root, where);
+    if (const json* v = in.find(f, "bands")) {
+      const json& list = in.array(*v, where + ".bands");
+      if (list.empty())
+        in.fail(where + ".bands", "an empty list (leave the key out for every band)");
+      for (size_t b = 0; b < list.size(); ++b) {
+        const std::string at = where + ".bands[" + std::to_string(b) + "]";
+        const double index = in.number(list[b], at);
+        if (index < 0 || index != std::floor(index) || index > 1e6)
+          in.fail(at, "expected a band index (0, 1, ... into \"wavelengths\")");
+        if (std::find(frame.bands.begin(), frame.bands.end(), int(index)) != frame.bands.end())
+          in.fail(at, "band " + std::to_string(int(index)) + " is listed twice");
+        frame.bands.push_back(int(index));
+      }
+    }
     file.frames.push_back(std::move(frame));
   }
   require_unique_files(in, file.frames);
@@ -201,6 +216,15 @@ TransformsFile parse(const Reader& in, const json& root) {
       file.wavelengths_nm.push_back(
           in.positive(list[i], "wavelengths[" + std::to_string(i) + "]", "a wavelength in nm"));
   }
+  for (size_t i = 0; i < file.frames.size(); ++i)
+    for (int b : file.frames[i].bands) {
+      const std::string where = "frames[" + std::to_string(i) + "].bands";
+      if (file.wavelengths_nm.empty())
+        in.fail(where, "frames name their bands, but there is no top-level \"wavelengths\" list");
+      if (size_t(b) >= file.wavelengths_nm.size())
+        in.fail(where, "band " + std::to_string(b) + " is past the " +
+                           std::to_string(file.wavelengths_nm.size()) + " wavelengths listed");
+    }
   if (const json* v = in.find(root, "ply_file_path"))
     file.ply_file_path = in.string(*v, "ply_file_path");
   if (const json* v = in.find(root, "applied_transform"))
@@ -283,6 +307,7 @@ void write_transforms(const fs::path& path, const TransformsFile& file) {
       frame["hyperspectral_file_path"] = f.hyperspectral_file_path;
     frame["transform_matrix"] = matrix_json(f.camera_to_world_gl, 4);
     if (!shared) put_intrinsics(frame, f.intrinsics);
+    if (!f.bands.empty()) frame["bands"] = f.bands;
     frames.push_back(std::move(frame));
   }
   root["frames"] = std::move(frames);

@@ -14,6 +14,11 @@ struct TransformsFrame {
   std::string hyperspectral_file_path;  // cube; empty for an RGB dataset
   core::Intrinsics intrinsics;          // per-frame, or copied from the global keys
   core::Mat4 camera_to_world_gl;        // as stored: OpenGL axes, maybe scaled rotation
+  // ddhgs extension for band-per-view scenes (one camera per band, as on a
+  // multispectral rig): the frame's file holds these bands of the top-level
+  // "wavelengths" list (0-based indices, in the file's band order). Empty:
+  // the file holds every band.
+  std::vector<int> bands;
 };
 
 struct TransformsFile {
