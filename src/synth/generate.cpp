@@ -14,6 +14,7 @@
 #include "io/ply/ply.h"
 #include "io/transforms/transforms.h"
 #include "synth/render.h"
+#include "synth/rig_scene.h"
 
 namespace ddhgs::synth {
 
@@ -27,13 +28,29 @@ std::vector<double> SynthConfig::wavelengths_nm() const {
 }
 
 std::vector<std::string> preset_names() {
-  return {"demo", "bayspec", "surface-optics", "noisy-edges"};
+  return {"demo", "bayspec", "surface-optics", "noisy-edges", "rig"};
 }
 
 SynthConfig preset_config(const std::string& name) {
   SynthConfig c;
   c.preset = name;
   if (name == "demo") return c;
+  if (name == "rig") {  // a RedEdge-MX's five band cameras, 1/8 of its 1280 x 960 pixels
+    c.rig = true;
+    c.width = 160;
+    c.height = 120;
+    c.bands = 5;
+    c.wl_min_nm = 475;
+    c.wl_max_nm = 842;
+    c.views = 24;
+    c.rings = 1;
+    c.min_elevation_deg = c.max_elevation_deg = 30;
+    c.fov_deg =
+        2 * std::atan(2.4 / 5.4) * 180 / 3.14159265358979323846;  // 4.8 mm sensor, 5.4 mm lens
+    c.supersample = 2;
+    c.points = 2000;
+    return c;
+  }
   if (name == "noisy-edges") {
     c.noisy_edges = true;
     return c;
@@ -156,6 +173,7 @@ nlohmann::json describe(const SynthConfig& c, const SpectralSetup& setup, const 
 }  // namespace
 
 SynthResult write_synthetic_scene(const SynthConfig& config, const fs::path& out, bool force) {
+  if (config.rig) return write_synthetic_rig(config, out, force);
   validate(config);
   auto start = std::chrono::steady_clock::now();
   SynthResult result;

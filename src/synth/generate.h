@@ -32,11 +32,15 @@ struct SynthConfig {
   bool ground = true;
   int points = 3000;            // sparse points in points.ply (about)
   double point_jitter = 0.004;  // scene units, like an SfM cloud's error
+  // The "rig" preset: raw TIFF captures of a five-camera multispectral rig
+  // instead of registered cubes (synth/rig_scene.h); bands and the
+  // wavelength range are the rig's.
+  bool rig = false;
 
   std::vector<double> wavelengths_nm() const;
 };
 
-// "demo", "bayspec", "surface-optics", "noisy-edges"; core::Error otherwise.
+// "demo", "bayspec", "surface-optics", "noisy-edges", "rig"; core::Error otherwise.
 SynthConfig preset_config(const std::string& name);
 std::vector<std::string> preset_names();
 

@@ -130,7 +130,7 @@ double real_tag(TIFF* tif, uint32_t tag) {
 // EXIF radiometry: BlackLevel in the main directory (a DNG tag, as MicaSense
 // writes it), ExposureTime and ISOSpeed in the EXIF directory. Leaves the
 // handle in the EXIF directory.
-void read_exif_radiometry(TIFF* tif, RigRadiometry* r) {
+void read_exif_radiometry(TIFF* tif, RigRadiometry* r, double& image_px_per_mm) {
   uint16_t count = 0;
   float* levels = nullptr;
   if (TIFFGetField(tif, TIFFTAG_BLACKLEVEL, &count, &levels) == 1 && count > 0 && levels) {
@@ -144,6 +144,7 @@ void read_exif_radiometry(TIFF* tif, RigRadiometry* r) {
       TIFFReadEXIFDirectory(tif, exif_offset) != 1)
     return;
   r->exposure_s = real_tag(tif, EXIFTAG_EXPOSURETIME);
+  image_px_per_mm = real_tag(tif, EXIFTAG_FOCALPLANEXRESOLUTION);
   uint32_t iso = 0;
   if (TIFFGetField(tif, EXIFTAG_ISOSPEED, &iso) == 1 && iso > 0) {
     r->iso_speed = iso;
@@ -238,7 +239,7 @@ RigBandImage read_rig_band_image(const fs::path& file) {
   const std::string xmp = has_xmp && xmp_data
                               ? std::string(static_cast<const char*>(xmp_data), xmp_size)
                               : std::string();
-  read_exif_radiometry(tif, &image.radiometry);
+  read_exif_radiometry(tif, &image.radiometry, image.px_per_mm);
   TIFFClose(tif);
   image.width = width;
   image.height = height;
@@ -269,6 +270,12 @@ RigBandImage read_rig_band_image(const fs::path& file) {
   if (auto id = xmp_property(xmp, "CaptureId")) image.capture_id = *id;
   if (auto f = xmp_property(xmp, "PerspectiveFocalLength"))
     image.focal_length_mm = number(*f, file, "PerspectiveFocalLength");
+  if (auto units = xmp_property(xmp, "PerspectiveFocalLengthUnits")) {
+    image.focal_length_units = core::lower(trim(*units));
+    if (image.focal_length_units != "mm" && image.focal_length_units != "px")
+      throw core::Error(file,
+                        "XMP PerspectiveFocalLengthUnits is '" + *units + "', expected mm or px");
+  }
   image.principal_point_mm = numbers(xmp_list(xmp, "PrincipalPoint"), file, "PrincipalPoint");
   image.distortion = numbers(xmp_list(xmp, "PerspectiveDistortion"), file, "PerspectiveDistortion");
   image.rig_relatives_deg = numbers(xmp_list(xmp, "RigRelatives"), file, "RigRelatives");
@@ -437,7 +444,7 @@ void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts
                              float(r.black_level)};
     TIFFSetField(tif, TIFFTAG_BLACKLEVEL, uint16_t(4), levels);
   }
-  const bool exif = r.exposure_s > 0 || r.iso_speed > 0;
+  const bool exif = r.exposure_s > 0 || r.iso_speed > 0 || image.px_per_mm > 0;
   if (exif) TIFFSetField(tif, TIFFTAG_EXIFIFD, uint64_t(0));  // its place; filled in below
   std::vector<uint16_t> row(width);
   bool ok = true;
@@ -451,6 +458,10 @@ void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts
     ok = TIFFCreateEXIFDirectory(tif) == 0 &&
          TIFFSetField(tif, EXIFTAG_EXPOSURETIME, r.exposure_s) == 1 &&
          TIFFSetField(tif, EXIFTAG_ISOSPEED, uint32_t(std::lround(r.iso_speed))) == 1 &&
+         (image.px_per_mm <= 0 ||
+          (TIFFSetField(tif, EXIFTAG_FOCALPLANEXRESOLUTION, image.px_per_mm) == 1 &&
+           TIFFSetField(tif, EXIFTAG_FOCALPLANEYRESOLUTION, image.px_per_mm) == 1 &&
+           TIFFSetField(tif, EXIFTAG_FOCALPLANERESOLUTIONUNIT, uint16_t(4)) == 1)) &&
          TIFFWriteCustomDirectory(tif, &offset) == 1 && TIFFSetDirectory(tif, 0) == 1 &&
          TIFFSetField(tif, TIFFTAG_EXIFIFD, offset) == 1 && TIFFRewriteDirectory(tif) == 1;
   }
@@ -460,6 +471,49 @@ void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts
     fs::remove(image.file, ec);
     throw core::Error(image.file, "cannot be written" + (error.empty() ? "" : " (" + error + ")"));
   }
+}
+
+core::Intrinsics rig_intrinsics(const RigBandImage& b) {
+  if (!(b.focal_length_mm > 0))
+    throw core::Error(b.file,
+                      "its XMP has no PerspectiveFocalLength: the band camera's focal "
+                      "length is unknown");
+  const bool in_px = b.focal_length_units == "px";
+  if (!in_px && !(b.px_per_mm > 0))
+    throw core::Error(b.file, "its EXIF has no FocalPlaneXResolution: the focal length (" +
+                                  std::to_string(b.focal_length_mm) +
+                                  " mm) cannot be put in pixels");
+  core::Intrinsics k;
+  k.width = int(b.width);
+  k.height = int(b.height);
+  k.fx = k.fy = in_px ? b.focal_length_mm : b.focal_length_mm * b.px_per_mm;
+  // The principal point is in mm whichever unit the focal length has.
+  const bool has_pp = b.principal_point_mm.size() == 2 && b.px_per_mm > 0;
+  k.cx = has_pp ? b.principal_point_mm[0] * b.px_per_mm : 0.5 * double(b.width);
+  k.cy = has_pp ? b.principal_point_mm[1] * b.px_per_mm : 0.5 * double(b.height);
+  if (b.distortion.size() == 5) {
+    k.k1 = b.distortion[0];
+    k.k2 = b.distortion[1];
+    k.k3 = b.distortion[2];
+    k.p1 = b.distortion[3];
+    k.p2 = b.distortion[4];
+  } else if (!b.distortion.empty()) {
+    throw core::Error(b.file, "XMP PerspectiveDistortion has " +
+                                  std::to_string(b.distortion.size()) +
+                                  " values, expected 5 (k1, k2, k3, p1, p2)");
+  }
+  return k;
+}
+
+core::Mat3 rig_relative_rotation(const std::vector<double>& angles_deg) {
+  if (angles_deg.size() != 3) return core::Mat3{};
+  const double k = 3.14159265358979323846 / 180;
+  const double a = angles_deg[0] * k, b = angles_deg[1] * k, c = angles_deg[2] * k;
+  core::Mat3 rx = core::Mat3{}, ry = core::Mat3{}, rz = core::Mat3{};
+  rx(1, 1) = std::cos(a), rx(1, 2) = -std::sin(a), rx(2, 1) = std::sin(a), rx(2, 2) = std::cos(a);
+  ry(0, 0) = std::cos(b), ry(0, 2) = std::sin(b), ry(2, 0) = -std::sin(b), ry(2, 2) = std::cos(b);
+  rz(0, 0) = std::cos(c), rz(0, 1) = -std::sin(c), rz(1, 0) = std::sin(c), rz(1, 1) = std::cos(c);
+  return rz * ry * rx;
 }
 
 double rig_relative_angle_deg(const std::vector<double>& angles_deg) {

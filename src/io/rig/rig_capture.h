@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "core/camera.h"
+
 namespace ddhgs::io {
 
 // What a band image's metadata says about turning its counts into radiance
@@ -41,12 +43,16 @@ struct RigRadiometry {
 // One band image and what its XMP and EXIF say about it.
 struct RigBandImage {
   std::filesystem::path file;
-  std::string capture_id;                  // MicaSense:CaptureId: the files of one trigger
-  int rig_index = 0;                       // Camera:RigCameraIndex (1-based on MicaSense rigs)
-  std::string band_name;                   // Camera:BandName, e.g. "Red edge"
-  double centre_nm = 0;                    // Camera:CentralWavelength
-  double fwhm_nm = 0;                      // Camera:WavelengthFWHM
-  double focal_length_mm = 0;              // Camera:PerspectiveFocalLength (0: absent)
+  std::string capture_id;      // MicaSense:CaptureId: the files of one trigger
+  int rig_index = 0;           // Camera:RigCameraIndex (1-based on MicaSense rigs)
+  std::string band_name;       // Camera:BandName, e.g. "Red edge"
+  double centre_nm = 0;        // Camera:CentralWavelength
+  double fwhm_nm = 0;          // Camera:WavelengthFWHM
+  double focal_length_mm = 0;  // Camera:PerspectiveFocalLength (0: absent)
+  // Camera:PerspectiveFocalLengthUnits: "mm" (the default) or "px", in which
+  // case focal_length_mm holds pixels.
+  std::string focal_length_units = "mm";
+  double px_per_mm = 0;                    // EXIF FocalPlaneXResolution (pixels per mm; 0: absent)
   std::vector<double> principal_point_mm;  // Camera:PrincipalPoint "x,y" (empty: absent)
   std::vector<double> distortion;          // Camera:PerspectiveDistortion k1 k2 k3 p1 p2
   // Camera:RigRelatives: this camera's rotation against the rig's reference
@@ -86,6 +92,17 @@ std::vector<RigCapture> read_rig_captures(const std::filesystem::path& dir);
 // True when dir holds TIFF files (any depth) but no transforms.json or COLMAP
 // model at its top: a folder of rig captures rather than a scene.
 bool looks_like_rig_captures(const std::filesystem::path& dir);
+
+// The band camera's pinhole intrinsics and lens distortion in pixels, from
+// its focal length, principal point (mm, through the focal-plane resolution)
+// and PerspectiveDistortion (k1, k2, k3, p1, p2). core::Error naming the file
+// when the focal length or the resolution it needs is absent.
+core::Intrinsics rig_intrinsics(const RigBandImage& image);
+
+// The band camera's rotation against the rig's reference camera from its
+// RigRelatives (x, y, z angles in degrees): Rz * Ry * Rx, taking a direction
+// in the reference camera's axes to this camera's. Identity when absent.
+core::Mat3 rig_relative_rotation(const std::vector<double>& angles_deg);
 
 // Writes image.file as a rig band image: a single-band 16-bit TIFF of
 // `counts` ([H, W], rounded and clamped to 0..65535) whose XMP and EXIF carry

@@ -1,0 +1,211 @@
+#include "synth/rig_scene.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
+#include "io/files/output_folder.h"
+#include "io/ply/ply.h"
+#include "io/rig/rig_capture.h"
+#include "io/rig/rig_radiometry.h"
+#include "io/transforms/transforms.h"
+#include "synth/render.h"
+
+namespace ddhgs::synth {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+// RedEdge-MX: 1280 px across a 4.8 mm sensor (3.75 um pixels), 5.4 mm lens.
+constexpr double kSensorWidthMm = 4.8;
+constexpr double kFocalMm = 5.4;
+
+// The metadata of band camera `band` in capture `id`, for an image of the
+// given size: what a RedEdge-MX writes, with made-up but typical radiometry.
+io::RigBandImage band_metadata(const RigBandCamera& band, const core::Intrinsics& k,
+                               const std::string& id, double exposure_s) {
+  io::RigBandImage b;
+  b.capture_id = id;
+  b.rig_index = band.index;
+  b.band_name = band.name;
+  b.centre_nm = band.centre_nm;
+  b.fwhm_nm = band.fwhm_nm;
+  b.px_per_mm = double(k.width) / kSensorWidthMm;
+  b.focal_length_mm = k.fx / b.px_per_mm;
+  b.principal_point_mm = {k.cx / b.px_per_mm, k.cy / b.px_per_mm};
+  b.distortion = {0, 0, 0, 0, 0};
+  b.rig_relatives_deg = band.relatives_deg;
+  b.width = k.width;
+  b.height = k.height;
+  b.bits = 16;
+  io::RigRadiometry& r = b.radiometry;
+  r.black_level = 4800;
+  r.has_black_level = true;
+  r.exposure_s = exposure_s;
+  r.iso_speed = 100;
+  r.calibration = {2.6e-4 + 1e-5 * band.index, 5e-8, 1e-5};
+  // About 30 % darker in the corners than in the centre.
+  const double corner = 0.5 * std::hypot(double(k.width), double(k.height));
+  r.vignetting_centre_px = {0.5 * k.width + 1.5, 0.5 * k.height - 1.0};
+  r.vignetting_polynomial = {0.0, -0.3 / (corner * corner)};
+  r.irradiance = band.irradiance;
+  r.irradiance_tag = "SpectralIrradiance";
+  return b;
+}
+
+std::string band_file(const std::string& stem, int index) {
+  return stem + "_" + std::to_string(index) + ".tif";
+}
+
+}  // namespace
+
+std::vector<RigBandCamera> rededge_rig() {
+  return {{1, "Blue", 475, 32, {0, 0, 0}, 1.05, 0.52},
+          {2, "Green", 560, 27, {0.45, -0.30, 0.20}, 1.30, 0.53},
+          {3, "Red", 668, 14, {-0.50, 0.25, -0.10}, 1.25, 0.53},
+          {4, "NIR", 842, 57, {0.30, 0.60, 0.35}, 0.95, 0.51},
+          {5, "Red edge", 717, 12, {-0.25, -0.55, 0.30}, 1.15, 0.52}};
+}
+
+SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, bool force) {
+  validate(config);
+  const auto start = std::chrono::steady_clock::now();
+  SynthResult result;
+  const std::vector<RigBandCamera> rig = rededge_rig();
+  std::vector<double> wavelengths;
+  for (const RigBandCamera& b : rig) wavelengths.push_back(b.centre_nm);
+  io::write_folder_atomically({out, io::OutputKind::Scene, force, {}}, [&](const fs::path& tmp) {
+    for (const char* sub : {"captures", "panel", "truth/bands", "truth/clean"})
+      fs::create_directories(tmp / sub);
+    PlantScene scene = PlantScene::build(config.seed, config.ground);
+    NoiseModel noise;
+    noise.scale = config.noise_scale;
+    const SpectralSetup setup = make_spectral_setup(scene, wavelengths, noise);
+    RigOptions options;
+    options.views = config.views;
+    options.rings = config.rings;
+    options.min_elevation_deg = config.min_elevation_deg;
+    options.max_elevation_deg = config.max_elevation_deg;
+    options.fov_deg = config.fov_deg;
+    options.width = config.width;
+    options.height = config.height;
+    options.fill = config.fill;
+    const std::vector<core::Camera> references = turntable_rig(scene, options);
+    const core::Intrinsics& k = references.front().intrinsics;
+
+    // The panel: a uniform grey card filling the frame, its radiance
+    // albedo x irradiance / pi, shot at a shorter exposure.
+    for (const RigBandCamera& band : rig) {
+      io::RigBandImage b = band_metadata(band, k, "panel", 0.0003);
+      b.file = tmp / "panel" / band_file("PANL_0000", band.index);
+      const torch::Tensor radiance = torch::full(
+          {b.height, b.width}, float(band.panel_albedo * band.irradiance / kPi), torch::kFloat);
+      io::write_rig_band_image(b, io::radiance_to_counts(b, radiance));
+    }
+
+    io::TransformsFile truth;
+    // The truth scene's band order is by wavelength, as a scene's grid is.
+    std::vector<int> order(rig.size());
+    for (size_t i = 0; i < rig.size(); ++i) order[i] = int(i);
+    std::sort(order.begin(), order.end(),
+              [&](int a, int b) { return rig[size_t(a)].centre_nm < rig[size_t(b)].centre_nm; });
+    std::vector<int> scene_band(rig.size());
+    for (size_t i = 0; i < order.size(); ++i) {
+      truth.wavelengths_nm.push_back(rig[size_t(order[i])].centre_nm);
+      scene_band[size_t(order[i])] = int(i);
+    }
+    truth.ply_file_path = "points.ply";
+    std::vector<float> xyz, spectra;
+    core::ProgressBar bar("synth rig", int64_t(references.size()));
+    for (int c = 0; c < int(references.size()); ++c) {
+      char stem[32];
+      std::snprintf(stem, sizeof stem, "IMG_%04d", c);
+      std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), uint32_t(c), 0x51600u};
+      std::mt19937_64 rng(seq);
+      for (size_t i = 0; i < rig.size(); ++i) {
+        const RigBandCamera& band = rig[i];
+        core::Camera camera = references[size_t(c)];
+        const core::Mat3 rotation = io::rig_relative_rotation(band.relatives_deg);
+        camera.world_to_camera = core::Mat4::from(rotation, {0, 0, 0}) * camera.world_to_camera;
+        const torch::Tensor clean_all = render_clean(scene, setup, camera, config.supersample);
+        const torch::Tensor noisy_all = add_noise(clean_all, setup, rng);
+        const torch::Tensor clean = clean_all.select(2, int64_t(i)).contiguous();
+        const torch::Tensor noisy = noisy_all.select(2, int64_t(i)).contiguous();
+        io::RigBandImage b = band_metadata(band, k, "capture" + std::to_string(c), 0.0004);
+        b.file = tmp / "captures" / band_file(stem, band.index);
+        // The clean value is the reflectance factor a perfect conversion
+        // recovers: radiance = value x irradiance / pi.
+        io::write_rig_band_image(b,
+                                 io::radiance_to_counts(b, noisy * float(band.irradiance / kPi)));
+        const std::string name = std::string(stem) + "_" + std::to_string(band.index) + ".npy";
+        io::write_npy(tmp / "truth" / "bands" / name, clean.unsqueeze(2));
+        io::write_npy(tmp / "truth" / "clean" / name, clean.unsqueeze(2));
+        io::TransformsFrame frame;
+        frame.hyperspectral_file_path = "bands/" + name;
+        frame.intrinsics = camera.intrinsics;
+        frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(camera.world_to_camera);
+        frame.bands = {scene_band[i]};
+        truth.frames.push_back(frame);
+        if (i == 0) {  // points from the reference camera, spectra from every band later
+          const int per_view = (config.points + config.views - 1) / config.views;
+          ViewPoints points =
+              sample_points(scene, camera, clean_all, per_view, config.point_jitter, rng);
+          xyz.insert(xyz.end(), points.xyz.begin(), points.xyz.end());
+          for (size_t p = 0; p < points.pixels.size(); ++p)
+            for (int j : order) spectra.push_back(points.spectra[p * rig.size() + size_t(j)]);
+        }
+      }
+      bar.update(c + 1);
+    }
+    bar.finish();
+    io::PointCloud cloud;
+    const int64_t count = int64_t(xyz.size() / 3);
+    cloud.xyz = torch::from_blob(xyz.data(), {count, 3}, torch::kFloat32).clone();
+    cloud.spectra =
+        torch::from_blob(spectra.data(), {count, int64_t(rig.size())}, torch::kFloat32).clone();
+    io::write_point_ply(tmp / "truth" / "points.ply", cloud);
+    io::write_transforms(tmp / "truth" / "transforms.json", truth);
+
+    nlohmann::json j;
+    j["generator"] = "ddhgs synth";
+    j["preset"] = config.preset;
+    j["seed"] = config.seed;
+    j["captures"] = references.size();
+    j["width"] = config.width;
+    j["height"] = config.height;
+    j["fov_deg"] = config.fov_deg;
+    j["rings"] = config.rings;
+    j["supersample"] = config.supersample;
+    j["noise_scale"] = config.noise_scale;
+    j["layout"] =
+        "captures/IMG_NNNN_k.tif (raw counts), panel/PANL_0000_k.tif, truth/ (a "
+        "band-per-view scene: true poses, clean reflectance)";
+    nlohmann::json cameras = nlohmann::json::array();
+    std::vector<double> albedo;
+    for (const RigBandCamera& b : rig) {
+      cameras.push_back({{"rig_index", b.index},
+                         {"band", b.name},
+                         {"centre_nm", b.centre_nm},
+                         {"rig_relatives_deg", b.relatives_deg},
+                         {"irradiance", b.irradiance},
+                         {"panel_albedo", b.panel_albedo}});
+      albedo.push_back(b.panel_albedo);
+    }
+    j["cameras"] = cameras;
+    j["panel_albedo"] = albedo;
+    io::write_file_atomically(tmp / "synth.json", j.dump(2) + "\n");
+    result.views = int(references.size() * rig.size());
+    result.points = int(count);
+  });
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace ddhgs::synth
