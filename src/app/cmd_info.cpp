@@ -339,8 +339,8 @@ int describe_rig(const std::string& dir, bool as_json) {
   }
   std::cout << "radiance    " << radiance << "\n"
             << "reflectance " << reflectance << "\n"
-            << "  note: ddhgs reads and checks rig captures and converts them to radiance and "
-               "reflectance; training on them is not built yet (issue 31)\n";
+            << "  next: ddhgs process " << dir
+            << " --rig --out SCENE (reflectance, poses) gives a scene to train\n";
   return 0;
 }
 

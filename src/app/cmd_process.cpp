@@ -2,12 +2,14 @@
 // trainable scene (pseudo-RGB, COLMAP poses and sparse points with spectra).
 #include <memory>
 
+#include "app/number_list.h"
 #include "app/registry.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/threads.h"
 #include "process/process.h"
 #include "process/pseudo_rgb_images.h"
+#include "process/rig.h"
 
 namespace ddhgs::app {
 namespace {
@@ -16,14 +18,33 @@ struct ProcessArgs {
   std::string cubes_dir, out, pseudo_rgb = "cie", wl_range, poses;
   process::ColmapOptions colmap;
   bool skip_colmap = false, force = false;
+  // --rig: multispectral rig captures
+  bool rig = false;
+  std::string panel, panel_albedo;
+  int reference_camera = 0;
 };
 
 Action setup(CLI::App& parent) {
   auto args = std::make_shared<ProcessArgs>();
   CLI::App* cmd = parent.add_subcommand(
-      "process", "Pose a folder of hyperspectral cubes with COLMAP and write a trainable scene");
-  cmd->add_option("CUBES_DIR", args->cubes_dir, "Folder of cubes (.npy .pt ENVI .hdr .tif)")
+      "process",
+      "Pose a folder of hyperspectral cubes (or multispectral rig captures, --rig) with COLMAP "
+      "and write a trainable scene");
+  cmd->add_option("CUBES_DIR", args->cubes_dir,
+                  "Folder of cubes (.npy .pt ENVI .hdr .tif), or of rig captures with --rig")
       ->required();
+  cmd->add_flag("--rig", args->rig,
+                "CUBES_DIR holds multispectral rig captures (one raw TIFF per band camera, "
+                "MicaSense layout): write a band-per-view scene of their reflectance");
+  cmd->add_option("--panel", args->panel,
+                  "With --rig: folder of one calibration-panel capture (reflectance from the "
+                  "panel; without it, from each capture's DLS irradiance)");
+  cmd->add_option("--panel-albedo", args->panel_albedo,
+                  "With --panel: the panel's albedo per band camera, in rig order (a,b,c,...)");
+  cmd->add_option(
+      "--reference-camera", args->reference_camera,
+      "With --rig: the band camera (rig index) whose images COLMAP poses; the others "
+      "follow by their rig rotations (default: the camera with the brightest reflectance)");
   cmd->add_option("--out", args->out, "Output scene folder")->required();
   cmd->add_option("--matcher", args->colmap.matcher,
                   "exhaustive (any capture) or sequential (views in capture order)")
@@ -51,6 +72,31 @@ Action setup(CLI::App& parent) {
     core::require(args->skip_colmap == !args->poses.empty(),
                   args->skip_colmap ? "--skip-colmap: expected --poses FILE with the poses"
                                     : "--poses: only used with --skip-colmap");
+    if (!args->rig)
+      for (const auto& [flag, given] :
+           {std::pair<const char*, bool>{"--panel", !args->panel.empty()},
+            {"--panel-albedo", !args->panel_albedo.empty()},
+            {"--reference-camera", args->reference_camera != 0}})
+        core::require(!given, std::string(flag) + ": only used with --rig");
+    if (args->rig) {
+      process::RigProcessOptions options;
+      options.captures_dir = args->cubes_dir;
+      options.out = args->out;
+      options.panel_dir = args->panel;
+      if (!args->panel_albedo.empty())
+        options.panel_albedo = parse_number_list(args->panel_albedo, "--panel-albedo");
+      options.reference_camera = args->reference_camera;
+      options.colmap = args->colmap;
+      options.colmap.threads = core::thread_count();
+      options.poses = args->poses;
+      options.force = args->force;
+      process::ProcessResult result = process::process_rig(options);
+      core::log_info("process: " + std::to_string(result.registered) + " of " +
+                     std::to_string(result.views) + " band images posed, " +
+                     std::to_string(result.points) + " points -> " + args->out + " in " +
+                     core::format_duration(result.seconds));
+      return 0;
+    }
     process::ProcessOptions options;
     options.cubes_dir = args->cubes_dir;
     options.out = args->out;

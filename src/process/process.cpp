@@ -19,11 +19,7 @@ namespace ddhgs::process {
 using namespace io;
 namespace fs = std::filesystem;
 
-namespace {
-
-// Poses given with --poses: a COLMAP model folder (.bin or .txt) or a
-// transforms.json, as a COLMAP model.
-ColmapModel read_poses(const fs::path& poses) {
+ColmapModel read_given_poses(const fs::path& poses) {
   if (fs::is_directory(poses)) {
     auto dir = find_colmap_model(poses);
     if (!dir && (fs::exists(poses / "cameras.bin") || fs::exists(poses / "cameras.txt")))
@@ -54,6 +50,8 @@ ColmapModel largest_colmap_model(const fs::path& sparse) {
   return std::move(models[*best]);
 }
 
+namespace {
+
 PointCloud points_of(const ColmapModel& model, const CubeSet& cubes) {
   PointCloud cloud = colmap_points(model);
   if (!model.points.empty()) cloud.spectra = sample_point_spectra(model, cubes);
@@ -81,7 +79,7 @@ ProcessResult process_cubes(const ProcessOptions& options) {
   // Given poses are read before the cubes: a missing or broken poses file is
   // named as such, not as a problem of the cubes found later.
   ColmapModel given_poses;
-  if (!run_sfm) given_poses = read_poses(options.poses);
+  if (!run_sfm) given_poses = read_given_poses(options.poses);
   CubeSet cubes = scan_cubes(options.cubes_dir, options.wavelengths);
   core::log_info("process: " + std::to_string(cubes.files.size()) + " cubes of " +
                  std::to_string(cubes.width) + "x" + std::to_string(cubes.height) + " px, " +

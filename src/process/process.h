@@ -38,4 +38,11 @@ struct ProcessResult {
 // <out>.colmap.log). Fewer than 3 posed views is an error.
 ProcessResult process_cubes(const ProcessOptions& options);
 
+// Poses given with --poses: a COLMAP model folder (.bin or .txt) or a
+// transforms.json, as a COLMAP model. core::Error naming the path otherwise.
+io::ColmapModel read_given_poses(const std::filesystem::path& poses);
+
+// The largest model COLMAP wrote under sparse/ (a log line when there were several).
+io::ColmapModel largest_colmap_model(const std::filesystem::path& sparse);
+
 }  // namespace ddhgs::process
