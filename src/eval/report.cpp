@@ -320,6 +320,13 @@ json report_data(const io::Scene& scene, const model::Gaussians& gaussians,
                             " | render | |render - truth| (colour bar 0 to " +
                             number(options.diff_max) + " reflectance)"}}},
           {"viewer", {{"views", results.viewer_views}, {"sources", quality["sources"]}}},
+          {"views_note",
+           scene.band_per_view()
+               ? "Each view of this scene holds only some of the bands (a band-per-view scene, "
+                 "as a multispectral rig captures it), so there is no whole-spectrum view to "
+                 "picture beside the render: the views are measured above, and the 3D view "
+                 "shows the model at every wavelength."
+               : ""},
           {"viridis", viridis_lut()},
           {"rdylgn", colormap_lut(Colormap::RdYlGn)},
           {"diff_max", options.diff_max},

@@ -128,6 +128,10 @@
     const select = $("figure-range");
     for (const sel of f.selections) select.appendChild(el("option", { value: sel.label, text: sel.title }));
     const grid = $("figure-grid");
+    if (f.views.length === 0) {
+      grid.appendChild(el("p", { class: "note", text: R.views_note || "No test view to show." }));
+      return;
+    }
     function show() {
       grid.replaceChildren();
       for (const v of f.views) {
@@ -167,6 +171,10 @@
 
   function viewerSection() {
     const V = R.viewer;
+    if (V.views.length === 0) {
+      $("spectrum-label").textContent = R.views_note || "No test view to show.";
+      return Promise.resolve();
+    }
     const wl = R.wavelengths_nm;
     const slider = $("band-slider");
     const viewSelect = $("viewer-view");
