@@ -82,7 +82,8 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
   std::vector<double> wavelengths;
   for (const RigBandCamera& b : rig) wavelengths.push_back(b.centre_nm);
   io::write_folder_atomically({out, io::OutputKind::Scene, force, {}}, [&](const fs::path& tmp) {
-    for (const char* sub : {"captures", "panel", "truth/bands", "truth/clean"})
+    for (const char* sub :
+         {"captures", "panel", "truth/bands", "truth/clean", "cubes/hyperspectral", "cubes/clean"})
       fs::create_directories(tmp / sub);
     PlantScene scene = PlantScene::build(config.seed, config.ground);
     NoiseModel noise;
@@ -122,6 +123,14 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
       scene_band[size_t(order[i])] = int(i);
     }
     truth.ply_file_path = "points.ply";
+    // The same captures as registered cubes: every band from the reference
+    // pose (the rig's camera without rotation), as a hyperspectral camera
+    // would take them; for comparing a band-per-view scene with one.
+    io::TransformsFile cubes;
+    cubes.wavelengths_nm = truth.wavelengths_nm;
+    cubes.ply_file_path = "points.ply";
+    const torch::Tensor band_order =
+        torch::tensor(std::vector<int64_t>(order.begin(), order.end()));
     std::vector<float> xyz, spectra;
     core::ProgressBar bar("synth rig", int64_t(references.size()));
     for (int c = 0; c < int(references.size()); ++c) {
@@ -129,6 +138,21 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
       std::snprintf(stem, sizeof stem, "IMG_%04d", c);
       std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), uint32_t(c), 0x51600u};
       std::mt19937_64 rng(seq);
+      {
+        const core::Camera& camera = references[size_t(c)];
+        const torch::Tensor clean = render_clean(scene, setup, camera, config.supersample);
+        const torch::Tensor noisy = add_noise(clean, setup, rng);
+        const std::string name = std::string(stem) + ".npy";
+        io::write_npy(tmp / "cubes" / "hyperspectral" / name,
+                      noisy.index_select(2, band_order).contiguous());
+        io::write_npy(tmp / "cubes" / "clean" / name,
+                      clean.index_select(2, band_order).contiguous());
+        io::TransformsFrame frame;
+        frame.hyperspectral_file_path = "hyperspectral/" + name;
+        frame.intrinsics = camera.intrinsics;
+        frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(camera.world_to_camera);
+        cubes.frames.push_back(frame);
+      }
       for (size_t i = 0; i < rig.size(); ++i) {
         const RigBandCamera& band = rig[i];
         core::Camera camera = references[size_t(c)];
@@ -172,6 +196,8 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         torch::from_blob(spectra.data(), {count, int64_t(rig.size())}, torch::kFloat32).clone();
     io::write_point_ply(tmp / "truth" / "points.ply", cloud);
     io::write_transforms(tmp / "truth" / "transforms.json", truth);
+    io::write_point_ply(tmp / "cubes" / "points.ply", cloud);
+    io::write_transforms(tmp / "cubes" / "transforms.json", cubes);
 
     nlohmann::json j;
     j["generator"] = "ddhgs synth";
@@ -186,7 +212,8 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     j["noise_scale"] = config.noise_scale;
     j["layout"] =
         "captures/IMG_NNNN_k.tif (raw counts), panel/PANL_0000_k.tif, truth/ (a "
-        "band-per-view scene: true poses, clean reflectance)";
+        "band-per-view scene: true poses, clean reflectance), cubes/ (the same captures as "
+        "registered five-band cubes from the reference pose)";
     nlohmann::json cameras = nlohmann::json::array();
     std::vector<double> albedo;
     for (const RigBandCamera& b : rig) {

@@ -11,6 +11,9 @@
 //   truth/                   a band-per-view scene of every band camera's true
 //                            pose and clean reflectance (bands/ and clean/, float32),
 //                            with points.ply
+//   cubes/                   the same captures as registered five-band cubes
+//                            from the reference pose (noisy and clean/), as a
+//                            hyperspectral camera would take them
 //   synth.json               the parameters, rig rotations and panel albedo
 #pragma once
 #include <filesystem>
