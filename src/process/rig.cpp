@@ -194,7 +194,11 @@ ProcessResult process_rig(const RigProcessOptions& options) {
                       "'s images); at least 3 are needed to train");
     std::vector<int> train, test;
     io::hypernerf_split(int(posed.size()), train, test);
+    // Fewer than 10 captures leave the Hyper-NeRF rule nothing to test on:
+    // the middle capture is held out instead (a strip's best-covered one).
+    if (test.empty() && posed.size() >= 4) test = {int(posed.size() / 2)};
     std::vector<bool> is_test(posed.size(), false);
+    (void)train;
     for (int t : test) is_test[size_t(t)] = true;
     for (size_t c = 0; c < posed.size(); ++c) {
       const io::RigBandImage& ref = *reference_of(*posed[c]);

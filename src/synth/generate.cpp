@@ -28,13 +28,21 @@ std::vector<double> SynthConfig::wavelengths_nm() const {
 }
 
 std::vector<std::string> preset_names() {
-  return {"demo", "bayspec", "surface-optics", "noisy-edges", "rig"};
+  return {"demo", "bayspec", "surface-optics", "noisy-edges", "rig", "rig-nadir"};
 }
 
 SynthConfig preset_config(const std::string& name) {
   SynthConfig c;
   c.preset = name;
   if (name == "demo") return c;
+  if (name == "rig-nadir") {  // the rig flown over the plant: 8 nadir captures, 70 % overlap
+    c = preset_config("rig");
+    c.preset = name;
+    c.nadir = true;
+    c.views = 8;
+    c.overlap = 0.7;
+    return c;
+  }
   if (name == "rig") {  // a RedEdge-MX's five band cameras, 1/8 of its 1280 x 960 pixels
     c.rig = true;
     c.width = 160;

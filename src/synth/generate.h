@@ -36,11 +36,16 @@ struct SynthConfig {
   // instead of registered cubes (synth/rig_scene.h); bands and the
   // wavelength range are the rig's.
   bool rig = false;
+  // With rig: a strip of `views` nadir captures flown over the plant and its
+  // ground at this forward overlap (0 < overlap < 1), instead of a ring.
+  bool nadir = false;
+  double overlap = 0.7;
 
   std::vector<double> wavelengths_nm() const;
 };
 
-// "demo", "bayspec", "surface-optics", "noisy-edges", "rig"; core::Error otherwise.
+// "demo", "bayspec", "surface-optics", "noisy-edges", "rig", "rig-nadir"; core::Error
+// otherwise.
 SynthConfig preset_config(const std::string& name);
 std::vector<std::string> preset_names();
 

@@ -98,7 +98,8 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     options.width = config.width;
     options.height = config.height;
     options.fill = config.fill;
-    const std::vector<core::Camera> references = turntable_rig(scene, options);
+    const std::vector<core::Camera> references =
+        config.nadir ? nadir_strip(scene, options, config.overlap) : turntable_rig(scene, options);
     const core::Intrinsics& k = references.front().intrinsics;
 
     // The panel: a uniform grey card filling the frame, its radiance
@@ -208,6 +209,8 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     j["height"] = config.height;
     j["fov_deg"] = config.fov_deg;
     j["rings"] = config.rings;
+    j["flight"] = config.nadir ? "nadir strip" : "ring";
+    if (config.nadir) j["overlap"] = config.overlap;
     j["supersample"] = config.supersample;
     j["noise_scale"] = config.noise_scale;
     j["layout"] =

@@ -118,6 +118,23 @@ torch::Tensor sample_view_volume(const io::Scene& scene, const std::vector<int>&
   return out;
 }
 
+double view_direction_spread_deg(const io::Scene& scene, const std::vector<int>& views) {
+  std::vector<core::Vec3> forward;
+  core::Vec3 mean{0, 0, 0};
+  for (int v : views) {
+    // The camera's +z axis in world coordinates: the third row of R (w2c).
+    const core::Mat3 r = scene.views[size_t(v)].camera.world_to_camera.rotation();
+    forward.push_back(core::Vec3{r(2, 0), r(2, 1), r(2, 2)}.normalized());
+    mean = mean + forward.back();
+  }
+  if (mean.norm() < 1e-9) return 180;
+  mean = mean.normalized();
+  double widest = 0;
+  for (const core::Vec3& f : forward)
+    widest = std::max(widest, std::acos(std::clamp(f.dot(mean), -1.0, 1.0)) * 180 / M_PI);
+  return widest;
+}
+
 std::pair<torch::Tensor, torch::Tensor> colours_from_views(const io::Scene& scene,
                                                            const std::vector<int>& views,
                                                            const torch::Tensor& xyz) {
@@ -201,6 +218,18 @@ model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions&
       const auto& first = scene.views[scene.train.front()].camera.intrinsics;
       count =
           std::llround(options.extra_random_per_pixel * double(first.width) * double(first.height));
+    }
+    if (count > 0 && scene.train.size() >= 2) {
+      const double spread = view_direction_spread_deg(scene, scene.train);
+      if (spread < kOneSidedSpreadDeg) {
+        char text[160];
+        std::snprintf(text, sizeof text,
+                      "the training views all look within %.1f degrees of one direction (a "
+                      "one-sided capture): no extra random points",
+                      spread);
+        core::log_info(text);
+        count = 0;
+      }
     }
     if (count > 0) {
       auto extra = sample_view_volume(scene, scene.train, count, generator);

@@ -119,6 +119,38 @@ TEST(Init, ExtraRandomPointsJoinTheDatasetsPoints) {
   EXPECT_TRUE(torch::allclose(grey, torch::full_like(grey, 0.5f), 0, 1e-6));
 }
 
+// The ring's views look at the origin from all around, 0.5 above it at a
+// radius of 3: their mean direction is straight down, and each is 90 -
+// atan(0.5 / 3) degrees from it. Views that all look down within a few
+// degrees are a one-sided capture, which gets no extra random points.
+TEST(Init, OneSidedCapturesGetNoExtraRandomPoints) {
+  auto ring = io::load_scene(write_scene("init_ring_spread", 150));
+  std::vector<int> every(ring->views.size());
+  for (size_t i = 0; i < every.size(); ++i) every[i] = int(i);
+  EXPECT_NEAR(view_direction_spread_deg(*ring, every), 90 - std::atan(0.5 / 3) * 180 / M_PI, 1e-6);
+  auto strip = io::load_scene(write_scene("init_strip", 150));
+  // Nadir cameras along x; the last one tilted 10 degrees about y.
+  for (size_t i = 0; i < strip->views.size(); ++i)
+    strip->views[i].camera.world_to_camera =
+        core::look_at({0.3 * double(i), 0, 3}, {0.3 * double(i), 0, 0}, {0, 1, 0});
+  const double t = 10 * M_PI / 180;
+  strip->views.back().camera.world_to_camera =
+      core::look_at({0.3 * 9, 0, 3}, {0.3 * 9 + 3 * std::tan(t), 0, 0}, {0, 1, 0});
+  std::vector<int> all(strip->views.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = int(i);
+  // The mean leans 1 degree towards the tilted view: it is 9 degrees away.
+  EXPECT_NEAR(view_direction_spread_deg(*strip, all), 9.0, 0.05);
+  strip->points.xyz = torch::tensor({0.0, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.1, 0.0}).view({3, 3});
+  strip->points.rgb = torch::full({3, 3}, 128, torch::kUInt8);
+  strip->train = all;
+  InitOptions options;
+  options.sh_degree = 1;
+  options.extra_random_per_pixel = 1.5;
+  EXPECT_EQ(initialise_gaussians(*strip, options).size(), 3);
+  ring->points = strip->points;
+  EXPECT_EQ(initialise_gaussians(*ring, options).size(), 3 + 288);
+}
+
 TEST(Init, BorderColourIsTheMedianOfTheBorderPixels) {
   auto scene = io::load_scene(write_scene("init_border", 14.0));
   const torch::Tensor colour = io::border_colour(*scene, scene->train);
