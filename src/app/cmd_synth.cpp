@@ -53,7 +53,10 @@ Action setup(CLI::App& parent) {
   CLI::App* cmd = parent.add_subcommand(
       "synth", "Write a built-in synthetic hyperspectral scene (potted plant, clean ground truth)");
   auto& f = args->flags;
-  cmd->add_option("--preset", args->preset, "demo, bayspec, surface-optics, noisy-edges, rig (raw TIFF captures of a 5-camera multispectral rig on a ring) or rig-nadir (the rig flown over the plant: 8 nadir captures, 70 % overlap)")
+  cmd->add_option("--preset", args->preset,
+                  "demo, bayspec, surface-optics, noisy-edges, rig (raw TIFF captures of a "
+                  "5-camera multispectral rig on a ring) or rig-nadir (the rig flown over the "
+                  "plant: 8 nadir captures, 70 % overlap)")
       ->capture_default_str();
   cmd->add_option("--out", args->out, "Output scene folder")->required();
   cmd->add_flag("--force", args->force, "Replace an existing non-empty output folder");
