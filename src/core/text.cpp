@@ -1,6 +1,7 @@
 #include "core/text.h"
 
 #include <cctype>
+#include <cstdio>
 
 namespace ddhgs::core {
 
@@ -14,6 +15,16 @@ std::string trim(const std::string& s) {
   if (a == std::string::npos) return {};
   const size_t b = s.find_last_not_of(" \t\r\n");
   return s.substr(a, b - a + 1);
+}
+
+std::string join_numbers(const std::vector<double>& values) {
+  std::string out;
+  char item[32];
+  for (size_t i = 0; i < values.size(); ++i) {
+    std::snprintf(item, sizeof item, "%s%.17g", i ? "," : "", values[i]);
+    out += item;
+  }
+  return out;
 }
 
 }  // namespace ddhgs::core

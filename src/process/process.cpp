@@ -19,6 +19,19 @@ namespace ddhgs::process {
 using namespace io;
 namespace fs = std::filesystem;
 
+fs::path output_folder(const fs::path& requested) {
+  fs::path out = requested.lexically_normal();
+  return out.filename().empty() ? out.parent_path() : out;
+}
+
+fs::path colmap_log_beside(const fs::path& out) {
+  const fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
+  fs::create_directories(parent);
+  const fs::path log = parent / (out.filename().string() + ".colmap.log");
+  fs::remove(log);
+  return log;
+}
+
 ColmapModel read_given_poses(const fs::path& poses) {
   if (fs::is_directory(poses)) {
     auto dir = find_colmap_model(poses);
@@ -67,9 +80,7 @@ std::string relative_to(const fs::path& file, const fs::path& dir) {
 
 ProcessResult process_cubes(const ProcessOptions& options) {
   auto start = std::chrono::steady_clock::now();
-  // "scene/" names the folder scene: the temporary sibling needs its name.
-  fs::path out = options.out.lexically_normal();
-  if (out.filename().empty()) out = out.parent_path();
+  const fs::path out = output_folder(options.out);
   const bool run_sfm = options.poses.empty();
   if (run_sfm) check_colmap_options(options.colmap);
   const OutputRequest request{
@@ -85,11 +96,7 @@ ProcessResult process_cubes(const ProcessOptions& options) {
                  std::to_string(cubes.width) + "x" + std::to_string(cubes.height) + " px, " +
                  std::to_string(cubes.bands) + " bands");
 
-  fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
-  fs::create_directories(parent);
-  // The log lives beside the output while COLMAP runs, so a failed run keeps it.
-  fs::path failed_log = parent / (out.filename().string() + ".colmap.log");
-  fs::remove(failed_log);
+  const fs::path failed_log = colmap_log_beside(out);
   ProcessResult result;
   result.views = int(cubes.files.size());
   write_folder_atomically(request, [&](const fs::path& tmp) {

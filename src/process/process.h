@@ -38,6 +38,15 @@ struct ProcessResult {
 // <out>.colmap.log). Fewer than 3 posed views is an error.
 ProcessResult process_cubes(const ProcessOptions& options);
 
+// The output folder as the temporary sibling needs it: "scene/" is the
+// folder scene.
+std::filesystem::path output_folder(const std::filesystem::path& requested);
+
+// Where COLMAP's log waits beside out while the scene is built, so that a
+// failed run keeps it: <out>.colmap.log, its folder made and an old one
+// removed.
+std::filesystem::path colmap_log_beside(const std::filesystem::path& out);
+
 // Poses given with --poses: a COLMAP model folder (.bin or .txt) or a
 // transforms.json, as a COLMAP model. core::Error naming the path otherwise.
 io::ColmapModel read_given_poses(const std::filesystem::path& poses);

@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 #include "io/colmap/colmap.h"
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
@@ -44,22 +45,11 @@ void write_reference_pngs(const std::vector<std::pair<std::string, torch::Tensor
   }
 }
 
-std::string joined(const std::vector<double>& values) {
-  std::string out;
-  char item[32];
-  for (size_t i = 0; i < values.size(); ++i) {
-    std::snprintf(item, sizeof item, "%s%.17g", i ? "," : "", values[i]);
-    out += item;
-  }
-  return out;
-}
-
 }  // namespace
 
 ProcessResult process_rig(const RigProcessOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  fs::path out = options.out.lexically_normal();
-  if (out.filename().empty()) out = out.parent_path();
+  const fs::path out = output_folder(options.out);
   const bool run_sfm = options.poses.empty();
   if (run_sfm) check_colmap_options(options.colmap);
   const io::OutputRequest request{out,
@@ -119,10 +109,7 @@ ProcessResult process_rig(const RigProcessOptions& options) {
                                 : "the panel capture in " + options.panel_dir.string()) +
                  "; poses from " + (run_sfm ? std::string("COLMAP") : options.poses.string()));
 
-  fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
-  fs::create_directories(parent);
-  fs::path failed_log = parent / (out.filename().string() + ".colmap.log");
-  fs::remove(failed_log);
+  const fs::path failed_log = colmap_log_beside(out);
   ProcessResult result;
   result.views = int(captures.size() * cameras.size());
   io::write_folder_atomically(request, [&](const fs::path& tmp) {
@@ -169,7 +156,7 @@ ProcessResult process_rig(const RigProcessOptions& options) {
       colmap.camera_model = "PINHOLE";
       colmap.settings.insert(
           colmap.settings.begin(),
-          {"ImageReader.camera_params=" + joined({k.fx, k.fy, k.cx, k.cy}),
+          {"ImageReader.camera_params=" + core::join_numbers({k.fx, k.fy, k.cx, k.cy}),
            "Mapper.ba_refine_focal_length=0", "Mapper.ba_refine_principal_point=0",
            "Mapper.ba_refine_extra_params=0"});
       run_colmap(colmap, tmp / "images", tmp / "colmap", failed_log);
@@ -198,7 +185,6 @@ ProcessResult process_rig(const RigProcessOptions& options) {
     // the middle capture is held out instead (a strip's best-covered one).
     if (test.empty() && posed.size() >= 4) test = {int(posed.size() / 2)};
     std::vector<bool> is_test(posed.size(), false);
-    (void)train;
     for (int t : test) is_test[size_t(t)] = true;
     for (size_t c = 0; c < posed.size(); ++c) {
       const io::RigBandImage& ref = *reference_of(*posed[c]);

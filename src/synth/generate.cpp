@@ -192,17 +192,7 @@ SynthResult write_synthetic_scene(const SynthConfig& config, const fs::path& out
     noise.scale = config.noise_scale;
     noise.edge_power = config.noisy_edges ? 2.0 : 1.0;
     SpectralSetup setup = make_spectral_setup(scene, config.wavelengths_nm(), noise);
-    RigOptions rig;
-    rig.views = config.views;
-    rig.rings = config.rings;
-    rig.min_elevation_deg = config.min_elevation_deg;
-    rig.max_elevation_deg = config.max_elevation_deg;
-    rig.fov_deg = config.fov_deg;
-    rig.width = config.width;
-    rig.height = config.height;
-    rig.fill = config.fill;
-    rig.k1 = config.k1;
-    auto cameras = turntable_rig(scene, rig);
+    auto cameras = turntable_rig(scene, rig_options(config));
 
     io::TransformsFile transforms;
     transforms.wavelengths_nm = setup.wavelengths_nm;

@@ -38,6 +38,32 @@ SpectralSetup make_spectral_setup(const PlantScene& scene,
   return setup;
 }
 
+RigOptions rig_options(const SynthConfig& config) {
+  RigOptions rig;
+  rig.views = config.views;
+  rig.rings = config.rings;
+  rig.min_elevation_deg = config.min_elevation_deg;
+  rig.max_elevation_deg = config.max_elevation_deg;
+  rig.fov_deg = config.fov_deg;
+  rig.width = config.width;
+  rig.height = config.height;
+  rig.fill = config.fill;
+  rig.k1 = config.k1;
+  return rig;
+}
+
+core::Intrinsics rig_intrinsics(const RigOptions& options) {
+  core::Intrinsics intr;
+  intr.width = options.width;
+  intr.height = options.height;
+  intr.fx = intr.fy =
+      core::focal_from_fov(options.fov_deg * 3.14159265358979323846 / 180, options.width);
+  intr.cx = 0.5 * options.width;
+  intr.cy = 0.5 * options.height;
+  intr.k1 = options.k1;
+  return intr;
+}
+
 std::vector<core::Camera> turntable_rig(const PlantScene& scene, const RigOptions& options) {
   core::require(options.views >= 1 && options.rings >= 1 && options.width > 0 &&
                     options.height > 0 && options.fov_deg > 0 && options.fov_deg < 170,
@@ -66,13 +92,7 @@ std::vector<core::Camera> turntable_rig(const PlantScene& scene, const RigOption
     assigned += step;
   }
 
-  core::Intrinsics intr;
-  intr.width = options.width;
-  intr.height = options.height;
-  intr.fx = intr.fy = core::focal_from_fov(options.fov_deg * deg, options.width);
-  intr.cx = 0.5 * options.width;
-  intr.cy = 0.5 * options.height;
-  intr.k1 = options.k1;
+  const core::Intrinsics intr = rig_intrinsics(options);
   // Same distance for every ring: the farthest at which the plant's box, seen
   // from any ring, fills the requested fraction of the frame.
   const Vec3 half = (scene.box_max - scene.box_min) * 0.5;
@@ -105,18 +125,12 @@ std::vector<core::Camera> nadir_strip(const PlantScene& scene, const RigOptions&
                                       double overlap) {
   core::require(options.views >= 1 && overlap > 0 && overlap < 1,
                 "synth: expected views >= 1 and 0 < overlap < 1");
-  const double deg = 3.14159265358979323846 / 180;
-  core::Intrinsics intr;
-  intr.width = options.width;
-  intr.height = options.height;
-  intr.fx = intr.fy = core::focal_from_fov(options.fov_deg * deg, options.width);
-  intr.cx = 0.5 * options.width;
-  intr.cy = 0.5 * options.height;
-  // The footprint along the strip (the image's width) at ground level: at
-  // least three quarters of the ground disc's radius.
-  // Flown at least three plant heights up, as a field is flown: the plant's
-  // top must stay in view of the neighbouring captures (from a third of the
-  // plant's height above it, a strip at 70 % overlap saw each leaf-top once).
+  const core::Intrinsics intr = rig_intrinsics(options);
+  // Flown at least three plant heights up, as a field is flown (the plant's
+  // top must stay in view of the neighbouring captures: from a third of the
+  // plant's height above it, a strip at 70 % overlap saw each leaf-top once),
+  // and high enough that a frame's width covers three quarters of the
+  // ground disc's radius.
   const double height =
       std::max(0.75 * scene.ground_radius * intr.fx / options.width, 3 * scene.box_max.z);
   const double footprint = height * options.width / intr.fx;

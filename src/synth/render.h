@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "synth/generate.h"
 #include "synth/plant.h"
 #include "synth/spectra.h"
 
@@ -46,6 +47,14 @@ struct RigOptions {
   double fill = 0.95;  // fraction of the frame (each axis) the plant's box fills
   double k1 = 0;       // radial lens distortion (OPENCV k1)
 };
+
+// The cameras a synthetic scene's flags ask for (views, rings, elevations,
+// field of view, size, fill, k1).
+RigOptions rig_options(const SynthConfig& config);
+
+// The camera every view of a rig shares: square pixels, options.fov_deg
+// across the width, the principal point at the centre, options.k1.
+core::Intrinsics rig_intrinsics(const RigOptions& options);
 
 // Rings of cameras at several elevations looking at the plant's centre; more
 // views on the lower (longer) rings. Cameras use OpenCV axes, world z is up.

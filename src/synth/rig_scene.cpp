@@ -89,15 +89,8 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     NoiseModel noise;
     noise.scale = config.noise_scale;
     const SpectralSetup setup = make_spectral_setup(scene, wavelengths, noise);
-    RigOptions options;
-    options.views = config.views;
-    options.rings = config.rings;
-    options.min_elevation_deg = config.min_elevation_deg;
-    options.max_elevation_deg = config.max_elevation_deg;
-    options.fov_deg = config.fov_deg;
-    options.width = config.width;
-    options.height = config.height;
-    options.fill = config.fill;
+    RigOptions options = rig_options(config);
+    options.k1 = 0;  // the band images' metadata records no lens distortion
     const std::vector<core::Camera> references =
         config.nadir ? nadir_strip(scene, options, config.overlap) : turntable_rig(scene, options);
     const core::Intrinsics& k = references.front().intrinsics;

@@ -1,10 +1,8 @@
 #include "support/rig_tiff.h"
 
-#include <tiffio.h>
-
 #include <cstdio>
-#include <stdexcept>
-#include <vector>
+
+#include "io/rig/rig_capture.h"
 
 namespace ddhgs::test {
 
@@ -28,23 +26,9 @@ std::string rig_xmp(const RigBandSpec& s) {
 }
 
 void write_band_tiff(const std::filesystem::path& path, const std::string& xmp) {
-  const uint32_t width = 16, height = 12;
-  TIFF* tif = TIFFOpen(path.c_str(), "w");
-  if (!tif) throw std::runtime_error("cannot write " + path.string());
-  TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, width);
-  TIFFSetField(tif, TIFFTAG_IMAGELENGTH, height);
-  TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, uint16_t(16));
-  TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, uint16_t(1));
-  TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
-  TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
-  TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, height);
-  if (!xmp.empty()) TIFFSetField(tif, TIFFTAG_XMLPACKET, uint32_t(xmp.size()), xmp.data());
-  std::vector<uint16_t> row(width);
-  for (uint32_t y = 0; y < height; ++y) {
-    for (uint32_t x = 0; x < width; ++x) row[x] = uint16_t(100 * x + y);
-    TIFFWriteScanline(tif, row.data(), y, 0);
-  }
-  TIFFClose(tif);
+  const torch::Tensor y = torch::arange(12, torch::kInt32).unsqueeze(1);
+  const torch::Tensor x = torch::arange(16, torch::kInt32).unsqueeze(0);
+  io::write_band_tiff(path, 100 * x + y, xmp);
 }
 
 void write_rig_capture(const std::filesystem::path& dir, int number) {

@@ -18,7 +18,8 @@ struct RigBandSpec {
 // elements, as MicaSense writes them).
 std::string rig_xmp(const RigBandSpec& spec);
 
-// A 16 x 12 uint16 TIFF holding `xmp` (none when empty).
+// A 16 x 12 uint16 TIFF holding `xmp` (none when empty), written by
+// io::write_band_tiff; pixel (x, y) holds 100 x + y.
 void write_band_tiff(const std::filesystem::path& path, const std::string& xmp);
 
 // The files of a capture (DIR made if needed): DIR/IMG_<number>_<rig index>.tif for each band of a

@@ -127,10 +127,11 @@ double real_tag(TIFF* tif, uint32_t tag) {
   return TIFFGetField(tif, tag, &value) == 1 ? value : 0;
 }
 
-// EXIF radiometry: BlackLevel in the main directory (a DNG tag, as MicaSense
-// writes it), ExposureTime and ISOSpeed in the EXIF directory. Leaves the
-// handle in the EXIF directory.
-void read_exif_radiometry(TIFF* tif, RigRadiometry* r, double& image_px_per_mm) {
+// EXIF: BlackLevel in the main directory (a DNG tag, as MicaSense writes
+// it), ExposureTime, ISOSpeed and FocalPlaneXResolution in the EXIF
+// directory. Leaves the handle in the EXIF directory.
+void read_exif(TIFF* tif, RigBandImage* image) {
+  RigRadiometry* r = &image->radiometry;
   uint16_t count = 0;
   float* levels = nullptr;
   if (TIFFGetField(tif, TIFFTAG_BLACKLEVEL, &count, &levels) == 1 && count > 0 && levels) {
@@ -144,7 +145,7 @@ void read_exif_radiometry(TIFF* tif, RigRadiometry* r, double& image_px_per_mm) 
       TIFFReadEXIFDirectory(tif, exif_offset) != 1)
     return;
   r->exposure_s = real_tag(tif, EXIFTAG_EXPOSURETIME);
-  image_px_per_mm = real_tag(tif, EXIFTAG_FOCALPLANEXRESOLUTION);
+  image->px_per_mm = real_tag(tif, EXIFTAG_FOCALPLANEXRESOLUTION);
   uint32_t iso = 0;
   if (TIFFGetField(tif, EXIFTAG_ISOSPEED, &iso) == 1 && iso > 0) {
     r->iso_speed = iso;
@@ -239,7 +240,7 @@ RigBandImage read_rig_band_image(const fs::path& file) {
   const std::string xmp = has_xmp && xmp_data
                               ? std::string(static_cast<const char*>(xmp_data), xmp_size)
                               : std::string();
-  read_exif_radiometry(tif, &image.radiometry, image.px_per_mm);
+  read_exif(tif, &image);
   TIFFClose(tif);
   image.width = width;
   image.height = height;
@@ -356,16 +357,6 @@ std::vector<RigCapture> read_rig_captures(const fs::path& dir) {
 
 namespace {
 
-std::string joined(const std::vector<double>& values) {
-  std::string out;
-  char item[32];
-  for (size_t i = 0; i < values.size(); ++i) {
-    std::snprintf(item, sizeof item, "%s%.17g", i ? "," : "", values[i]);
-    out += item;
-  }
-  return out;
-}
-
 std::string seq(const std::string& name, const std::vector<double>& values) {
   if (values.empty()) return "";
   std::string out = "<Camera:" + name + "><rdf:Seq>";
@@ -382,11 +373,7 @@ std::string xmp_of(const RigBandImage& b) {
   auto attribute = [](const std::string& name, const std::string& value) {
     return " " + name + "=\"" + value + "\"\n";
   };
-  auto real = [](double v) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%.17g", v);
-    return std::string(text);
-  };
+  auto real = [](double v) { return core::join_numbers({v}); };
   std::string out =
       "<x:xmpmeta xmlns:x=\"adobe:ns:meta/\"><rdf:RDF "
       "xmlns:rdf=\"http://www.w3.org/1999/02/22-rdf-syntax-ns#\">\n"
@@ -400,9 +387,9 @@ std::string xmp_of(const RigBandImage& b) {
   if (b.focal_length_mm > 0)
     out += attribute("Camera:PerspectiveFocalLength", real(b.focal_length_mm));
   if (!b.principal_point_mm.empty())
-    out += attribute("Camera:PrincipalPoint", joined(b.principal_point_mm));
+    out += attribute("Camera:PrincipalPoint", core::join_numbers(b.principal_point_mm));
   if (!b.rig_relatives_deg.empty())
-    out += attribute("Camera:RigRelatives", joined(b.rig_relatives_deg));
+    out += attribute("Camera:RigRelatives", core::join_numbers(b.rig_relatives_deg));
   if (r.irradiance > 0) {
     out += attribute("Camera:" + (r.irradiance_tag.empty() ? std::string("SpectralIrradiance")
                                                            : r.irradiance_tag),
@@ -417,9 +404,9 @@ std::string xmp_of(const RigBandImage& b) {
   return out + "</rdf:Description></rdf:RDF></x:xmpmeta>";
 }
 
-}  // namespace
-
-void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts) {
+// image.file as a single-band 16-bit TIFF of counts, with `xmp` (none when
+// empty) and the EXIF image's metadata asks for.
+void write_band(const RigBandImage& image, const torch::Tensor& counts, const std::string& xmp) {
   core::require(counts.dim() == 2, image.file, "band counts must be [H, W]");
   const uint32_t height = uint32_t(counts.size(0)), width = uint32_t(counts.size(1));
   const torch::Tensor values =
@@ -430,7 +417,6 @@ void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts
   if (!tif)
     throw core::Error(image.file, "cannot be written" + (error.empty() ? "" : " (" + error + ")"));
   const RigRadiometry& r = image.radiometry;
-  const std::string xmp = xmp_of(image);
   TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, width);
   TIFFSetField(tif, TIFFTAG_IMAGELENGTH, height);
   TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, uint16_t(16));
@@ -438,7 +424,7 @@ void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts
   TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
   TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
   TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, height);
-  TIFFSetField(tif, TIFFTAG_XMLPACKET, uint32_t(xmp.size()), xmp.data());
+  if (!xmp.empty()) TIFFSetField(tif, TIFFTAG_XMLPACKET, uint32_t(xmp.size()), xmp.data());
   if (r.has_black_level) {
     const float levels[4] = {float(r.black_level), float(r.black_level), float(r.black_level),
                              float(r.black_level)};
@@ -471,6 +457,18 @@ void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts
     fs::remove(image.file, ec);
     throw core::Error(image.file, "cannot be written" + (error.empty() ? "" : " (" + error + ")"));
   }
+}
+
+}  // namespace
+
+void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts) {
+  write_band(image, counts, xmp_of(image));
+}
+
+void write_band_tiff(const fs::path& path, const torch::Tensor& counts, const std::string& xmp) {
+  RigBandImage plain;
+  plain.file = path;
+  write_band(plain, counts, xmp);
 }
 
 core::Intrinsics rig_intrinsics(const RigBandImage& b) {

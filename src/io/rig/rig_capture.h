@@ -112,6 +112,12 @@ core::Mat3 rig_relative_rotation(const std::vector<double>& angles_deg);
 // tests. core::Error naming the file when it cannot be written.
 void write_rig_band_image(const RigBandImage& image, const torch::Tensor& counts);
 
+// Writes `path` as a single-band 16-bit TIFF of counts ([H, W]) carrying
+// `xmp` as it is (none when empty) and no EXIF: a band image with whatever
+// metadata a test or a conversion hands it.
+void write_band_tiff(const std::filesystem::path& path, const torch::Tensor& counts,
+                     const std::string& xmp);
+
 // The rotation angle, degrees, of a band camera against the reference camera
 // from its three rig-relative angles (composed about x, y and z).
 double rig_relative_angle_deg(const std::vector<double>& angles_deg);
