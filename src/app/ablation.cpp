@@ -191,11 +191,15 @@ std::string output_label(const json& entry) {
 }  // namespace
 
 const std::vector<AblationRow>& ablation_rows() {
-  static const std::vector<AblationRow> rows = {
-      {"3dgs", false, false, false},        {"sl", true, false, false},
-      {"we", false, true, false},           {"we+sl", true, true, false},
-      {"diffusion", false, false, true},    {"full", true, true, true},
-      {"subspace", false, false, false, -1}};
+  static const std::vector<AblationRow> rows = {{"3dgs", false, false, false},
+                                                {"sl", true, false, false},
+                                                {"we", false, true, false},
+                                                {"we+sl", true, true, false},
+                                                {"diffusion", false, false, true},
+                                                {"full", true, true, true},
+                                                {"subspace", false, false, false, -1},
+                                                {"folds", false, false, true, 0, true},
+                                                {"distilled", false, false, true, 0, true, true}};
   return rows;
 }
 
@@ -207,7 +211,7 @@ std::vector<AblationRow> select_rows(const std::vector<std::string>& names,
                            [&](const AblationRow& r) { return r.name == name; });
     core::require(it != ablation_rows().end(),
                   where + ": unknown row '" + name +
-                      "' (rows: 3dgs, sl, we, we+sl, diffusion, full, subspace)");
+                      "' (rows: 3dgs, sl, we, we+sl, diffusion, full, subspace, folds, distilled)");
     for (const AblationRow& r : selected)
       core::require(r.name != name, where + ": row '" + name + "' is listed twice");
     selected.push_back(*it);
@@ -230,6 +234,14 @@ json row_config(const AblationOptions& options, const AblationRow& row) {
   train::set_key(config, "model.spectral_rank", std::to_string(row.spectral_rank), source);
   // The subspace row is a subspace at any band count; the paper's rows are per band.
   train::set_key(config, "model.subspace_from_bands", "0", source);
+  if (row.fold_pairs) {
+    train::set_key(config, "diffusion.joint", "false", source);
+    train::set_key(config, "diffusion.pairs", "folds", source);
+  }
+  if (row.distill)
+    train::set_key(config, "diffusion.distill_steps",
+                   std::to_string(std::max<int64_t>(1, config.at("iterations").get<int64_t>() / 4)),
+                   source);
   std::error_code ec;
   config["data"]["path"] = fs::absolute(options.data, ec).lexically_normal().string();
   train::validate_config(config, source);

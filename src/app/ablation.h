@@ -20,10 +20,17 @@ struct AblationRow {
   bool wavelength_encoder = false;
   bool diffusion = false;
   int spectral_rank = 0;  // model.spectral_rank (-1: the scene's signal rank)
+  // Issue 33: the denoiser learns from auxiliary models' renders of views
+  // they never saw (diffusion.pairs=folds, no joint term), and with
+  // `distill` a quarter of the iterations more distil it into the Gaussians.
+  bool fold_pairs = false;
+  bool distill = false;
 };
 
 // The six rows of the paper's Table 3, in its order, then ddhgs's own:
-// "subspace", the 3dgs row with a spectral-subspace colour model.
+// "subspace", the 3dgs row with a spectral-subspace colour model; "folds",
+// the 3dgs row with a denoiser trained on novel-view pairs; "distilled",
+// that row with the denoiser distilled back into the Gaussians.
 const std::vector<AblationRow>& ablation_rows();
 // Rows by name, in the given order; core::Error naming `where` for an
 // unknown or repeated name.

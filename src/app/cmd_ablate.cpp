@@ -11,7 +11,8 @@ namespace {
 
 struct AblateArgs {
   std::string data, out;
-  std::vector<std::string> rows = {"3dgs", "sl", "we", "we+sl", "diffusion", "full", "subspace"};
+  std::vector<std::string> rows = {"3dgs", "sl",       "we",    "we+sl",    "diffusion",
+                                   "full", "subspace", "folds", "distilled"};
   AblationOptions options;
 };
 
@@ -20,7 +21,8 @@ Action setup(CLI::App& parent) {
   CLI::App* cmd = parent.add_subcommand(
       "ablate",
       "Train and evaluate the DD-HGS ablation rows (3DGS, +SL, +WE, +WE+SL, +Diffusion, full, "
-      "and a spectral-subspace colour model) "
+      "a spectral-subspace colour model, a denoiser trained on novel-view pairs, and that "
+      "denoiser distilled into the Gaussians) "
       "with the same preset, seed and iterations; writes DIR/<row>/ runs, DIR/ablation.md and "
       "DIR/ablation.json");
   cmd->add_option("data", args->data, "Dataset folder")->required();

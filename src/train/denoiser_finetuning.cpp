@@ -5,13 +5,13 @@
 namespace ddhgs::train {
 
 DenoiserFinetuning::DenoiserFinetuning(DiffusionTerm& term, const io::Scene& scene,
-                                       RenderView render)
-    : term_(term), scene_(scene), render_(std::move(render)) {}
+                                       RenderView render, std::vector<int> views)
+    : term_(term), scene_(scene), render_(std::move(render)), views_(std::move(views)) {}
 
 void DenoiserFinetuning::cache_renders() {
   cache_checked_ = true;
   double bytes = 0;
-  for (int v : scene_.train) {
+  for (int v : views_) {
     const auto& in = scene_.views[v].camera.intrinsics;
     bytes += double(in.width) * double(in.height) * double(scene_.bands()) * sizeof(float);
   }
@@ -21,7 +21,7 @@ void DenoiserFinetuning::cache_renders() {
                                    : "the training views' renders exceed the cache budget, "
                                      "rendering them as they are drawn"));
   if (cache)
-    for (int v : scene_.train) renders_.push_back(render_(v));
+    for (int v : views_) renders_.push_back(render_(v));
 }
 
 nlohmann::json DenoiserFinetuning::step(int64_t k, model::Adam& adam, uint64_t seed) {
@@ -31,9 +31,9 @@ nlohmann::json DenoiserFinetuning::step(int64_t k, model::Adam& adam, uint64_t s
   for (auto& group : adam.groups())
     if (group.name.rfind("denoiser/", 0) == 0) group.lr = lr;
   const FinetuneLosses losses = finetune_losses(
-      term_.denoiser(), options, scene_.train.size(),
+      term_.denoiser(), options, views_.size(),
       [&](size_t i) {
-        const int v = scene_.train[i];
+        const int v = views_[i];
         return std::make_pair(renders_.empty() ? render_(v) : renders_[i], scene_.image(v));
       },
       seed);

@@ -21,7 +21,10 @@ class DenoiserFinetuning {
  public:
   // render(view) -> the frozen Gaussians' [H, W, N] render of a scene view.
   using RenderView = std::function<torch::Tensor(int view)>;
-  DenoiserFinetuning(DiffusionTerm& term, const io::Scene& scene, RenderView render);
+  // views: the scene views it trains on (the training views, less any kept
+  // for validation).
+  DenoiserFinetuning(DiffusionTerm& term, const io::Scene& scene, RenderView render,
+                     std::vector<int> views);
 
   // Step k (0-based) of options().finetune_steps: sets the denoiser groups'
   // learning rate (finetune_lr), steps Adam and returns the metrics record
@@ -34,7 +37,8 @@ class DenoiserFinetuning {
   DiffusionTerm& term_;
   const io::Scene& scene_;
   RenderView render_;
-  std::vector<torch::Tensor> renders_;  // of scene_.train, when cached
+  std::vector<int> views_;
+  std::vector<torch::Tensor> renders_;  // of views_, when cached
   bool cache_checked_ = false;
   // Moving averages (over ~100 steps) of the fine-tuning loss and of the
   // loss of returning the render unchanged, for metrics.jsonl; < 0 unset.

@@ -18,6 +18,16 @@ const char* const kArchiveKey = "denoiser";
 
 }  // namespace
 
+FinetunePairs parse_finetune_pairs(const std::string& name, const std::string& where) {
+  if (name == "training") return FinetunePairs::Training;
+  if (name == "folds") return FinetunePairs::Folds;
+  throw core::Error(where, "pairs is '" + name + "'; expected 'training' or 'folds'");
+}
+
+std::string to_string(FinetunePairs pairs) {
+  return pairs == FinetunePairs::Folds ? "folds" : "training";
+}
+
 DiffusionTerm::DiffusionTerm(const DiffusionTermOptions& options, uint64_t init_seed)
     : options_(options), denoiser_(std::make_shared<model::Denoiser>()) {
   torch::manual_seed(init_seed);

@@ -23,6 +23,11 @@
 
 namespace ddhgs::train {
 
+enum class FinetunePairs { Training, Folds };
+// "training" | "folds"; core::Error naming `where` otherwise.
+FinetunePairs parse_finetune_pairs(const std::string& name, const std::string& where);
+std::string to_string(FinetunePairs pairs);
+
 struct DiffusionTermOptions {
   double weight = 0;           // loss.diffusion (paper w4 = 0.3); 0: no denoiser
   int64_t warmup = 0;          // iterations of Gaussians only before the term starts
@@ -54,6 +59,29 @@ struct DiffusionTermOptions {
   double beta_start = 1e-4, beta_end = 0.02;
   // Inference defaults for eval and render (flags override).
   model::SamplerOptions sampler;
+
+  // Issue 33. joint: the paper's term during the Gaussian iterations (false:
+  // the denoiser is trained only afterwards, and the Gaussian iterations cost
+  // what they cost without the stage).
+  bool joint = true;
+  // What the fine-tuning learns from: renders of the training views by the
+  // Gaussians that fitted them, or renders of each view by an auxiliary model
+  // trained without it (train/novel_views.h): `folds` interleaved folds,
+  // each auxiliary model trained for fold_iterations x the run's iterations.
+  FinetunePairs pairs = FinetunePairs::Training;
+  int64_t folds = 4;
+  double fold_iterations = 0.5;
+  // Distillation: distill_steps Gaussian iterations after the fine-tuning, of
+  // which every distill_every-th trains on a pseudo-view (the denoised render
+  // midway between two training cameras) with its losses scaled by
+  // distill_weight; the others on the training views as before.
+  int64_t distill_steps = 0;
+  double distill_weight = 0.5;
+  int64_t distill_every = 2;
+  // Every validation_every-th training view (0: none) is left out of the
+  // fine-tuning and denoised after it, to see whether the denoiser helps
+  // views it did not learn from; the distillation runs only if it does.
+  int64_t validation_every = 5;
 
   bool enabled() const { return weight > 0; }
 };

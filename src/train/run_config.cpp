@@ -144,6 +144,14 @@ DiffusionTermOptions parse_diffusion(const json& d, double weight, uint64_t seed
   o.sampler.eta = read<double>(d, s, "eta", source);
   o.sampler.samples = read<int64_t>(d, s, "sampler_samples", source);
   o.sampler.seed = seed;
+  o.joint = read<bool>(d, s, "joint", source);
+  o.pairs = parse_finetune_pairs(read<std::string>(d, s, "pairs", source), source + ": diffusion");
+  o.folds = read<int64_t>(d, s, "folds", source);
+  o.fold_iterations = read<double>(d, s, "fold_iterations", source);
+  o.distill_steps = read<int64_t>(d, s, "distill_steps", source);
+  o.distill_weight = read<double>(d, s, "distill_weight", source);
+  o.distill_every = read<int64_t>(d, s, "distill_every", source);
+  o.validation_every = read<int64_t>(d, s, "validation_every", source);
   // Each key's range was checked by validate_config (config_values.cpp); what
   // is left is the sampler against the schedule it samples.
   o.sampler.validate(o.schedule_steps, source + ": diffusion");
@@ -218,8 +226,10 @@ const std::vector<std::string>& sampler_keys() {
 }
 
 const std::vector<std::string>& finetune_keys() {
-  static const std::vector<std::string> keys = {"finetune_steps", "finetune_batch", "finetune_crop",
-                                                "finetune_cache_mb"};
+  static const std::vector<std::string> keys = {
+      "finetune_steps", "finetune_batch", "finetune_crop",   "finetune_cache_mb",
+      "pairs",          "folds",          "fold_iterations", "validation_every",
+      "distill_steps",  "distill_weight", "distill_every"};
   return keys;
 }
 

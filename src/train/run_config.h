@@ -121,7 +121,7 @@ torch::Tensor background(const ModelConfig& model, int64_t bands);
 
 // Keys of the "diffusion" section that act only when a trained run is
 // evaluated or rendered (the sampler's), and those that act only after the
-// Gaussian iterations (the denoiser's fine-tuning).
+// Gaussian iterations (the denoiser's pairs, fine-tuning and distillation).
 const std::vector<std::string>& sampler_keys();
 const std::vector<std::string>& finetune_keys();
 

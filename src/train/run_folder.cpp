@@ -23,8 +23,9 @@ fs::path RunPaths::checkpoint_at(int64_t iteration) const {
 std::vector<std::string> run_entry_names() {
   // export/: `ddhgs export`'s default output. Nested outputs (eval/,
   // report/, renders/) carry markers of their own and are checked as such.
-  return {"config.json",        "gaussians.ply",   "checkpoint.pt", "checkpoints", "metrics.jsonl",
-          "train_summary.json", "background.json", "denoiser.pt",   "export"};
+  return {"config.json",   "gaussians.ply",      "checkpoint.pt",   "checkpoints",
+          "metrics.jsonl", "train_summary.json", "background.json", "denoiser.pt",
+          "export",        "pseudo_views.pt"};
 }
 
 RunWriter::RunWriter(const RunPaths& run, io::OutputRequest request)
@@ -143,6 +144,7 @@ void rewind_to_gaussian_end(const RunPaths& run, int64_t iterations, const nlohm
                                   "finish it as configured)");
   io::copy_file_atomically(at_end, run.checkpoint());
   fs::remove(run.summary());
+  fs::remove(run.pseudo_views());  // made from the Gaussians being rewound
   io::write_file_atomically(run.config(), config.dump(2) + "\n");
 }
 

@@ -2,6 +2,7 @@
 
 #include <ATen/CPUGeneratorImpl.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -20,6 +21,7 @@
 #include "model/densify.h"
 #include "train/config.h"
 #include "train/init.h"
+#include "train/novel_views.h"
 #include "train/run_checks.h"
 
 namespace ddhgs::train {
@@ -63,6 +65,8 @@ constexpr uint64_t kEncoderInitStream = 1;
 constexpr uint64_t kTermStream = uint64_t(1) << 40;
 // The denoiser U-Net's initial weights (beyond every iteration's term stream).
 constexpr uint64_t kDenoiserInitStream = uint64_t(1) << 41;
+// The auxiliary models of diffusion.pairs = folds: fold f's run seed.
+constexpr uint64_t kFoldStream = uint64_t(1) << 42;
 
 bool every(int64_t iteration, int64_t interval) {
   return interval > 0 && iteration % interval == 0;
@@ -92,7 +96,15 @@ void Trainer::load_scene() {
   const fs::path& data = config_.data.path;
   core::require(!data.empty(), run_.config(), "data.path is empty: no dataset to train on");
   scene_ = io::load_scene(data, config_.data.load);
-  io::log_scene_messages(*scene_);
+  if (held_out_.empty()) {
+    io::log_scene_messages(*scene_);
+  } else {  // an auxiliary model of fold_renders(): the main run said it all
+    std::vector<int> train;
+    for (int v : scene_->train)
+      if (std::find(held_out_.begin(), held_out_.end(), v) == held_out_.end()) train.push_back(v);
+    scene_->train = train;
+    scene_->test = held_out_;
+  }
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   check_scene_before_training(*scene_);
   background_ = background(config_.model, scene_->bands());
@@ -151,7 +163,7 @@ void Trainer::build_modules() {
     diffusion_ =
         std::make_unique<DiffusionTerm>(diffusion, mix_seed(config_.seed, kDenoiserInitStream));
     add_module("denoiser", diffusion_->denoiser().unet.ptr(), diffusion.lr);
-    losses_.push_back(diffusion_->loss_term());
+    if (diffusion.joint) losses_.push_back(diffusion_->loss_term());
   }
 }
 
@@ -290,22 +302,23 @@ int Trainer::view_for(int64_t iteration) const {
   return scene_->train[size_t(order[position].item<int64_t>())];
 }
 
-json Trainer::step(int64_t iteration) {
+json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   core::StageScope step_scope("step (other)");
   // The denoiser's convolutions are large enough for LibTorch's own threads.
   std::optional<core::TorchThreads> torch_threads;
-  if (diffusion_ && iteration > diffusion_->options().warmup) torch_threads.emplace();
+  const bool joint = diffusion_ && diffusion_->options().joint && iteration <= config_.iterations;
+  if (joint && iteration > diffusion_->options().warmup) torch_threads.emplace();
   set_learning_rates(iteration);
   auto& g = state_.gaussians;
   if (every(iteration, schedule_.sh_degree_every) && g.active_sh_degree < g.max_sh_degree())
     ++g.active_sh_degree;
 
-  const int view = view_for(iteration);
-  const core::Camera& camera = scene_->views[view].camera;
+  const int view = pseudo ? -1 : view_for(iteration);
+  const core::Camera& camera = pseudo ? pseudo->camera : scene_->views[view].camera;
   torch::Tensor target;
   {
     core::StageScope stage("view (to float)");
-    target = scene_->image(view);
+    target = pseudo ? pseudo->target : scene_->image(view);
   }
   auto sink = torch::zeros({g.size(), 2}).requires_grad_(true);
   render::RenderOutput out;
@@ -315,15 +328,21 @@ json Trainer::step(int64_t iteration) {
     // backward: their [G, N, 15] gradient is never stored.
     render::ShRestSink rest_step;
     if (g.sh_rest.numel() > 0) rest_step = state_.adam.row_step("sh_rest");
-    out = render_training_view(view, sink, rest_step);
+    out = pseudo ? model::render_gaussians(g, camera, background_, band_offsets(), sink, rest_step)
+                 : render_training_view(view, sink, rest_step);
   }
   // A view of a band-per-view scene supervises only the bands it holds.
-  const torch::Tensor rendered = scene_->view_slice(view, out.image);
+  const torch::Tensor rendered = pseudo ? out.image : scene_->view_slice(view, out.image);
   LossValues loss;
   {
     core::StageScope stage("losses (other)");
-    loss = evaluate_losses(losses_, {rendered, target, view, iteration,
-                                     mix_seed(config_.seed, kTermStream + uint64_t(iteration))});
+    // After the Gaussian iterations (distillation) the joint term is over.
+    std::vector<LossTerm> terms;
+    for (const LossTerm& term : losses_)
+      if (iteration <= config_.iterations || term.name != "diffusion") terms.push_back(term);
+    loss = evaluate_losses(terms, {rendered, target, view, iteration,
+                                   mix_seed(config_.seed, kTermStream + uint64_t(iteration))});
+    if (pseudo) loss.total = loss.total * diffusion_->options().distill_weight;
   }
   {
     core::StageScope stage("backward (other)");
@@ -377,20 +396,221 @@ json Trainer::advance() {
   return record;
 }
 
-int64_t Trainer::total_steps() const {
+int64_t Trainer::finetune_end() const {
   return config_.iterations + (diffusion_ ? diffusion_->options().finetune_steps : 0);
+}
+
+int64_t Trainer::total_steps() const {
+  return finetune_end() + (diffusion_ ? diffusion_->options().distill_steps : 0);
 }
 
 json Trainer::finetune_step(int64_t iteration) {
   core::TorchThreads torch_threads;  // the denoiser's convolutions
-  if (!finetuning_)
-    finetuning_ = std::make_unique<DenoiserFinetuning>(*diffusion_, *scene_, [this](int v) {
-      torch::NoGradGuard no_grad;
-      return render_training_view(v, {}).image;
-    });
+  if (!finetuning_) finetune_step_setup();
   json record = finetuning_->step(iteration - config_.iterations - 1, state_.adam,
                                   mix_seed(config_.seed, kTermStream + uint64_t(iteration)));
   record["iter"] = iteration;
+  if (iteration == finetune_end()) validate_denoiser();
+  return record;
+}
+
+void Trainer::finetune_step_setup() {
+  if (diffusion_->options().pairs == FinetunePairs::Folds && fold_renders_.empty())
+    fold_renders_ = fold_renders();
+  std::vector<int> views;
+  validation_views_.clear();
+  const int64_t every = diffusion_->options().validation_every;
+  for (size_t i = 0; i < scene_->train.size(); ++i)
+    (every > 0 && int64_t(i) % every == every / 2 ? validation_views_ : views)
+        .push_back(scene_->train[i]);
+  if (views.empty()) std::swap(views, validation_views_);
+  finetuning_ = std::make_unique<DenoiserFinetuning>(
+      *diffusion_, *scene_, [this](int v) { return denoiser_condition(v); }, views);
+}
+
+torch::Tensor Trainer::denoiser_condition(int view) {
+  if (diffusion_->options().pairs == FinetunePairs::Folds) {
+    if (fold_renders_.empty()) fold_renders_ = fold_renders();
+    return fold_renders_.at(view);
+  }
+  torch::NoGradGuard no_grad;
+  return render_training_view(view, {}).image;
+}
+
+void Trainer::validate_denoiser() {
+  denoiser_validation_ = {{"views", validation_views_.size()}};
+  if (validation_views_.empty()) return;
+  core::TorchThreads torch_threads;
+  torch::NoGradGuard no_grad;
+  double raw = 0, denoised = 0;
+  for (size_t i = 0; i < validation_views_.size(); ++i) {
+    const int v = validation_views_[i];
+    const torch::Tensor render = denoiser_condition(v), target = scene_->image(v);
+    model::SamplerOptions sampler = diffusion_->options().sampler;
+    sampler.seed = mix_seed(config_.seed, kTermStream + uint64_t(finetune_end()) + i);
+    raw += eval::psnr_db(render.clamp(0, 1), target);
+    denoised += eval::psnr_db(model::denoise_view(diffusion_->denoiser(), render, sampler), target);
+  }
+  const double n = double(validation_views_.size());
+  denoiser_validation_["psnr_render"] = raw / n;
+  denoiser_validation_["psnr_denoised"] = denoised / n;
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "denoiser on %zu training views it did not learn from: %.2f dB denoised against "
+                "%.2f dB as rendered (%+.2f dB)",
+                validation_views_.size(), denoised / n, raw / n, (denoised - raw) / n);
+  core::log_info(text);
+}
+
+std::map<int, torch::Tensor> Trainer::fold_renders() {
+  const DiffusionTermOptions& o = diffusion_->options();
+  const auto folds = interleaved_folds(scene_->train, int(o.folds));
+  RunConfig aux = config_;
+  aux.iterations =
+      std::max<int64_t>(1, std::llround(o.fold_iterations * double(config_.iterations)));
+  aux.diffusion.weight = 0;  // an auxiliary model has no denoiser of its own
+  std::map<int, torch::Tensor> renders;
+  const auto start = std::chrono::steady_clock::now();
+  for (size_t f = 0; f < folds.size(); ++f) {
+    aux.seed = mix_seed(config_.seed, kFoldStream + f);
+    std::unique_ptr<Trainer> t(new Trainer(aux, run_));
+    t->held_out_ = folds[f];
+    {
+      // The main run has said what loading and initialising say.
+      const core::LogLevel level = core::log_level();
+      core::set_log_level(std::min(level, core::LogLevel::Quiet));
+      struct Restore {
+        core::LogLevel level;
+        ~Restore() { core::set_log_level(level); }
+      } restore{level};
+      t->load_scene();
+      InitOptions init = aux.init;
+      init.seed = mix_seed(aux.seed, 0);
+      t->state_.gaussians = initialise_gaussians(*t->scene_, init, t->colour_);
+      t->state_.stats.reset(t->state_.gaussians.size());
+      t->create_optimizer();
+    }
+    core::ProgressBar bar("fold " + std::to_string(f + 1) + "/" + std::to_string(folds.size()),
+                          aux.iterations);
+    for (int64_t i = 0; i < aux.iterations; ++i) {
+      if (g_stop) throw core::Error(run_.root, "interrupted while training the auxiliary models");
+      t->advance();
+      bar.update(t->state_.iteration);
+    }
+    bar.finish();
+    torch::NoGradGuard no_grad;
+    const torch::Tensor offsets = t->band_offsets();
+    for (int v : folds[f])
+      renders[v] = eval::render_view(*t->scene_, t->state_.gaussians, t->background_, v, offsets);
+  }
+  core::log_info(
+      "denoiser pairs: " + std::to_string(renders.size()) + " training views rendered by " +
+      std::to_string(folds.size()) + " auxiliary models that never saw them (" +
+      std::to_string(aux.iterations) + " iterations each, " +
+      core::format_duration(
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) +
+      ")");
+  return renders;
+}
+
+void Trainer::make_pseudo_views(int64_t iteration) {
+  const DiffusionTermOptions& o = diffusion_->options();
+  std::vector<core::Camera> train_cameras;
+  for (int v : scene_->train) train_cameras.push_back(scene_->views[v].camera);
+  std::vector<core::Camera> cameras = between_cameras(train_cameras);
+  if (cameras.empty())
+    throw core::Error(run_.root, "distillation needs at least two training views");
+  // As many as the fine-tuning's memory budget holds, evenly spread.
+  const auto& in = cameras.front().intrinsics;
+  const double bytes = double(in.width) * double(in.height) * double(scene_->bands()) * 4.0;
+  const size_t fit = size_t(std::max(1.0, double(o.finetune_cache_mb) * 1048576.0 / bytes));
+  if (cameras.size() > fit) {
+    std::vector<core::Camera> kept;
+    for (size_t i = 0; i < fit; ++i) kept.push_back(cameras[i * cameras.size() / fit]);
+    core::log_info("distillation: " + std::to_string(fit) + " of " +
+                   std::to_string(cameras.size()) +
+                   " pseudo-views fit diffusion.finetune_cache_mb");
+    cameras = kept;
+  }
+  const fs::path file = run_.pseudo_views();
+  if (iteration > finetune_end() + 1 && fs::exists(file)) {
+    torch::serialize::InputArchive archive;
+    torch::Tensor targets;
+    try {
+      archive.load_from(file.string());
+      archive.read("targets", targets);
+    } catch (const c10::Error&) {
+      throw core::Error(file, "unreadable or truncated: start the run again with --force");
+    }
+    if (targets.dim() != 4 || targets.size(0) != int64_t(cameras.size()))
+      throw core::Error(file, "does not hold this run's pseudo-views");
+    for (size_t i = 0; i < cameras.size(); ++i)
+      pseudo_views_.push_back({cameras[i], targets[int64_t(i)]});
+    return;
+  }
+  if (iteration > finetune_end() + 1)
+    throw core::Error(file,
+                      "missing: the distillation cannot resume without its pseudo-views; "
+                      "resume with --iterations to redo the stage");
+  core::TorchThreads torch_threads;  // the denoiser's convolutions
+  torch::NoGradGuard no_grad;
+  const torch::Tensor offsets = band_offsets();
+  core::ProgressBar bar("pseudo-views", int64_t(cameras.size()));
+  std::vector<torch::Tensor> targets;
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    const torch::Tensor render =
+        model::render_gaussians(state_.gaussians, cameras[i], background_, offsets).image;
+    model::SamplerOptions sampler = o.sampler;
+    sampler.seed = mix_seed(config_.seed, kTermStream + uint64_t(iteration) + i);
+    targets.push_back(model::denoise_view(diffusion_->denoiser(), render, sampler));
+    pseudo_views_.push_back({cameras[i], targets.back()});
+    bar.update(int64_t(i) + 1);
+  }
+  bar.finish();
+  torch::serialize::OutputArchive archive;
+  archive.write("targets", torch::stack(targets));
+  io::write_stream_atomically(file, [&](io::FileSink& sink) {
+    archive.save_to([&](const void* data, size_t size) { return sink.write(data, size); });
+  });
+}
+
+json Trainer::distill_step(int64_t iteration) {
+  if (denoiser_validation_.is_null()) {
+    // Resumed after the fine-tuning: the same verdict again.
+    if (!finetuning_) finetune_step_setup();
+    validate_denoiser();
+  }
+  if (!distilling_) {
+    distilling_ = true;  // decided once per process
+    const bool gained = !denoiser_validation_.contains("psnr_denoised") ||
+                        denoiser_validation_["psnr_denoised"].get<double>() >
+                            denoiser_validation_["psnr_render"].get<double>();
+    if (gained) {
+      make_pseudo_views(iteration);
+    } else if (iteration == finetune_end() + 1) {
+      core::log_warn(
+          "distillation skipped: the denoiser made the views it did not learn from worse, so "
+          "its pseudo-views would teach the Gaussians its errors; the " +
+          std::to_string(diffusion_->options().distill_steps) +
+          " iterations left train on the training views only");
+    }
+  }
+  if (pseudo_views_.empty()) {
+    json record = step(iteration);
+    record["phase"] = "distill";
+    return record;
+  }
+  const DiffusionTermOptions& o = diffusion_->options();
+  const int64_t k = iteration - finetune_end() - 1;
+  if (k % o.distill_every != o.distill_every - 1) {
+    json record = step(iteration);
+    record["phase"] = "distill";
+    return record;
+  }
+  const size_t p = size_t(k / o.distill_every) % pseudo_views_.size();
+  json record = step(iteration, &pseudo_views_[p]);
+  record["phase"] = "distill";
+  record["pseudo_view"] = p;
   return record;
 }
 
@@ -466,7 +686,15 @@ void Trainer::write_outputs(double seconds, const json& test_at_end) {
   }
   if (diffusion_ && diffusion_->options().finetune_steps > 0) {
     summary["denoiser_finetune_steps"] = diffusion_->options().finetune_steps;
+    // Everything after the Gaussian iterations: auxiliary models, fine-tuning
+    // and distillation.
     summary["denoiser_finetune_seconds"] = seconds - gaussian_seconds;
+  }
+  if (diffusion_) {
+    if (!denoiser_validation_.is_null()) summary["denoiser_validation"] = denoiser_validation_;
+    summary["denoiser_pairs"] = to_string(diffusion_->options().pairs);
+    summary["distill_steps"] = diffusion_->options().distill_steps;
+    summary["pseudo_views"] = pseudo_views_.size();
   }
   summary.update(test_at_end.is_null() ? test_psnr() : test_at_end);
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
@@ -570,10 +798,13 @@ TrainStatus Trainer::run_steps() {
                   record["diffusion_identity_avg"].get<double>());
     return std::string(text);
   };
-  const bool finished = run_phase(
-                            iterations, [this](int64_t i) { return step(i); }, gaussian_status) &&
-                        run_phase(
-                            total, [this](int64_t i) { return finetune_step(i); }, finetune_status);
+  const bool finished =
+      run_phase(
+          iterations, [this](int64_t i) { return step(i); }, gaussian_status) &&
+      run_phase(
+          finetune_end(), [this](int64_t i) { return finetune_step(i); }, finetune_status) &&
+      run_phase(
+          total, [this](int64_t i) { return distill_step(i); }, gaussian_status);
   state_.counters.seconds = elapsed();
   if (!finished) {
     save(false);
@@ -586,7 +817,17 @@ TrainStatus Trainer::run_steps() {
   // Gaussians, 141 bands, 640x512) are not needed by the outputs below.
   core::pool_release_idle();
   save(true);
+  if (total > finetune_end()) {
+    // The distillation changed the Gaussians: measure them again, and keep
+    // what they scored before it.
+    json before = json::object();
+    for (const auto& [key, value] : test_at_end.items())
+      before[key + "_before_distillation"] = value;
+    test_at_end = test_psnr();
+    test_at_end.update(before);
+  }
   write_outputs(state_.counters.seconds, test_at_end);
+  fs::remove(run_.pseudo_views());
   bar.finish();
   return TrainStatus::Finished;
 }

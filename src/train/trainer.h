@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -84,12 +85,42 @@ class Trainer {
   // render::rasterize; rest_step receives the SH rest gradient in blocks.
   render::RenderOutput render_training_view(int view, const torch::Tensor& sink,
                                             const render::ShRestSink& rest_step = {});
-  // One Gaussian iteration (1-based); returns its metrics record.
-  nlohmann::json step(int64_t iteration);
-  // Gaussian iterations plus the denoiser's fine-tuning steps, if any.
+  // A distillation target: a camera between training cameras and the
+  // denoised render there.
+  struct PseudoView {
+    core::Camera camera;
+    torch::Tensor target;  // [H, W, N]
+  };
+  // One Gaussian iteration (1-based) on a training view, or on `pseudo` with
+  // its losses scaled by diffusion.distill_weight; returns its metrics record.
+  nlohmann::json step(int64_t iteration, const PseudoView* pseudo = nullptr);
+  // Gaussian iterations plus the denoiser's fine-tuning and distillation
+  // steps, if any.
   int64_t total_steps() const;
+  // The last fine-tuning step (the Gaussian iterations when there is none).
+  int64_t finetune_end() const;
   // One denoiser-only step after the Gaussian iterations (DenoiserFinetuning).
   nlohmann::json finetune_step(int64_t iteration);
+  // Each training view rendered by an auxiliary model trained without its
+  // fold (diffusion.pairs = folds; train/novel_views.h), by view index.
+  std::map<int, torch::Tensor> fold_renders();
+  // One distillation step after the fine-tuning: a pseudo-view every
+  // diffusion.distill_every-th step, else a training view.
+  nlohmann::json distill_step(int64_t iteration);
+  // The pseudo-views: made (and kept in RUN/pseudo_views.pt, so a resumed
+  // run trains on the same targets) at the first distillation step, read
+  // back when resuming after it.
+  void make_pseudo_views(int64_t iteration);
+  // Makes finetuning_: the training views less the validation ones.
+  void finetune_step_setup();
+  // The fine-tuning's condition for a training view (a fold render, or the
+  // frozen Gaussians' render).
+  torch::Tensor denoiser_condition(int view);
+  // Denoises the training views the fine-tuning left out
+  // (diffusion.validation_every) and compares them with their renders:
+  // {"views", "psnr_render", "psnr_denoised"}; distillation runs only when
+  // the denoiser gained on them.
+  void validate_denoiser();
   TrainStatus run_steps();
   void save(bool numbered);
   // test_at_end: test_psnr() already taken at the last Gaussian iteration
@@ -111,6 +142,13 @@ class Trainer {
   std::unique_ptr<DiffusionTerm> diffusion_;        // loss.diffusion > 0
   torch::Tensor wavelengths01_;                     // [N] the encoder's input
   std::unique_ptr<DenoiserFinetuning> finetuning_;  // made on its first step
+  std::map<int, torch::Tensor> fold_renders_;       // diffusion.pairs = folds
+  std::vector<PseudoView> pseudo_views_;            // made on the first distillation step
+  std::vector<int> validation_views_;               // training views the denoiser leaves out
+  nlohmann::json denoiser_validation_;              // null until validate_denoiser()
+  bool distilling_ = false;                         // whether to distil is decided
+  // An auxiliary model's training views leave these out (fold_renders).
+  std::vector<int> held_out_;
   // Holds a latent colour model's basis and mean as trained parameters;
   // attach_colour() hands them to the Gaussians.
   std::shared_ptr<torch::nn::Module> colour_module_;

@@ -169,6 +169,98 @@ TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
   EXPECT_NE(out.find("no denoiser.pt"), std::string::npos) << out;
 }
 
+// Issue 33: the denoiser learns from renders of views that auxiliary models
+// never saw, is checked on training views it did not learn from, and is
+// distilled back into the Gaussians through pseudo-views between cameras.
+TEST(DenoiserCli, FoldPairsValidationAndDistillationResumeBitForBit) {
+  const fs::path runs = test::temp_dir("denoiser_fold_runs");
+  const fs::path straight = runs / "straight", plain = runs / "plain", stopped = runs / "stopped";
+  // 40 Gaussian iterations, 20 fine-tuning steps (41-60), 40 distillation
+  // steps (61-100), every second on a pseudo-view.
+  const std::string stage =
+      " --set loss.diffusion=0.3 --set diffusion.joint=false --set diffusion.pairs=folds"
+      " --set diffusion.folds=2 --set diffusion.fold_iterations=0.5"
+      " --set diffusion.distill_steps=40 --set diffusion.validation_every=0";
+  const std::string train = "train " + scene().string() + kDiffusion +
+                            " --iterations 40 --set output.test_every=40 --set output.log_every=1";
+  std::string out;
+  ASSERT_EQ(ddhgs(train + stage + " --out " + straight.string(), &out), 0) << out;
+  // Two auxiliary models of 20 iterations rendered the 9 training views.
+  EXPECT_NE(out.find("denoiser pairs: 9 training views rendered by 2 auxiliary models"),
+            std::string::npos)
+      << out;
+  auto summary = read_json(straight / "train_summary.json");
+  EXPECT_EQ(summary["denoiser_pairs"], "folds");
+  EXPECT_EQ(summary["distill_steps"], 40);
+  const int pseudo_views = summary["pseudo_views"].get<int>();
+  EXPECT_GE(pseudo_views, 5);  // about one per gap between the 9 cameras
+  EXPECT_FALSE(fs::exists(straight / "pseudo_views.pt"));  // removed at the end
+  std::ifstream metrics(straight / "metrics.jsonl");
+  int pseudo_steps = 0, view_steps = 0;
+  for (std::string line; std::getline(metrics, line);) {
+    auto record = nlohmann::json::parse(line);
+    const int iter = record["iter"].get<int>();
+    // No joint term: the Gaussian iterations cost what they cost without it.
+    if (iter <= 40) {
+      EXPECT_FALSE(record.contains("diffusion")) << line;
+    }
+    if (iter > 60) {
+      EXPECT_EQ(record["phase"], "distill") << line;
+      if (record.contains("pseudo_view")) {
+        ++pseudo_steps;
+        EXPECT_EQ((iter - 61) % 2, 1) << line;
+        EXPECT_EQ(record["pseudo_view"].get<int>(), ((iter - 61) / 2) % pseudo_views) << line;
+      } else {
+        ++view_steps;
+      }
+    }
+  }
+  EXPECT_EQ(pseudo_steps, 20);
+  EXPECT_EQ(view_steps, 20);
+
+  // Without the stage's joint term the first 40 iterations are those of a
+  // run without the stage: the same test PSNR before the distillation.
+  ASSERT_EQ(ddhgs(train + " --out " + plain.string(), &out), 0) << out;
+  const auto plain_summary = read_json(plain / "train_summary.json");
+  EXPECT_EQ(summary["test_psnr_before_distillation"], plain_summary["test_psnr"]);
+  EXPECT_NE(summary["test_psnr"], plain_summary["test_psnr"]);
+
+  // Stopped (SIGINT) during the distillation and resumed: the pseudo-views
+  // are kept for the resumed run, which ends where the straight one did.
+  const std::string background =
+      test::ddhgs_binary() + " " + train + stage + " --out " + stopped.string();
+  const std::string metrics_file = (stopped / "metrics.jsonl").string();
+  ASSERT_EQ(test::run_command("sh -c '" + background + " & pid=$!; until grep -q distill " +
+                                  metrics_file + " 2>/dev/null; do sleep 0.02; done; kill -INT " +
+                                  "$pid; wait $pid'",
+                              &out),
+            130)
+      << out;
+  ASSERT_TRUE(fs::exists(stopped / "pseudo_views.pt")) << out;
+  ASSERT_EQ(ddhgs("train --resume " + stopped.string(), &out), 0) << out;
+  EXPECT_EQ(io::read_file(stopped / "gaussians.ply"), io::read_file(straight / "gaussians.ply"));
+  EXPECT_FALSE(fs::exists(stopped / "pseudo_views.pt"));
+
+  // With a validation share the denoiser is measured on training views it
+  // did not learn from, and distils only if it gained there.
+  const fs::path checked = runs / "checked";
+  ASSERT_EQ(
+      ddhgs(train + stage + " --set diffusion.validation_every=4 --out " + checked.string(), &out),
+      0)
+      << out;
+  summary = read_json(checked / "train_summary.json");
+  const auto& validation = summary["denoiser_validation"];
+  EXPECT_EQ(validation["views"], 2);  // positions 2 and 6 of the 9
+  const double render = validation["psnr_render"], denoised = validation["psnr_denoised"];
+  EXPECT_TRUE(std::isfinite(render) && std::isfinite(denoised)) << validation.dump();
+  if (denoised > render) {
+    EXPECT_EQ(summary["pseudo_views"], pseudo_views);
+  } else {
+    EXPECT_EQ(summary["pseudo_views"], 0);
+    EXPECT_NE(out.find("distillation skipped"), std::string::npos) << out;
+  }
+}
+
 TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
   const fs::path dir = test::temp_dir("ablate_cli") / "ablation";
   const std::string ablate =
@@ -191,7 +283,8 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
     EXPECT_GT(e["fps"].get<double>(), 0.0);
   }
   EXPECT_EQ(rows, (std::vector<std::string>{"3dgs", "sl", "we", "we+sl", "diffusion", "diffusion",
-                                            "full", "full", "subspace"}));
+                                            "full", "full", "subspace", "folds", "folds",
+                                            "distilled", "distilled"}));
   EXPECT_EQ(outputs[4], "render");
   EXPECT_EQ(outputs[5], "ddim2-mean4");  // the default: the mean of 4 samples
   const std::string md = io::read_file(dir / "ablation.md");
@@ -211,6 +304,11 @@ TEST(AblateCli, WritesEveryRowWithFiniteValuesAndReusesFinishedRows) {
   EXPECT_EQ(config("subspace")["model"]["spectral_rank"], -1);
   EXPECT_EQ(config("subspace")["model"]["subspace_from_bands"], 0);  // a subspace at 8 bands too
   EXPECT_EQ(config("subspace")["loss"]["spectral"], 0.0);
+  EXPECT_EQ(config("folds")["diffusion"]["pairs"], "folds");
+  EXPECT_EQ(config("folds")["diffusion"]["joint"], false);
+  EXPECT_EQ(config("folds")["diffusion"]["distill_steps"], 0);
+  EXPECT_EQ(config("distilled")["diffusion"]["distill_steps"], 10);  // a quarter of 40
+  EXPECT_EQ(read_json(dir / "distilled" / "train_summary.json")["distill_steps"], 10);
   EXPECT_NE(io::read_file(dir / "subspace" / "gaussians.ply").find("comment band_basis"),
             std::string::npos);
   EXPECT_FALSE(fs::exists(dir / "we+sl" / "denoiser.pt"));

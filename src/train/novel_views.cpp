@@ -1,0 +1,65 @@
+#include "train/novel_views.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <utility>
+
+namespace ddhgs::train {
+
+std::vector<std::vector<int>> interleaved_folds(const std::vector<int>& views, int k) {
+  k = std::clamp(k, 1, std::max(1, int(views.size())));
+  std::vector<std::vector<int>> folds(static_cast<size_t>(k));
+  for (size_t i = 0; i < views.size(); ++i) folds[i % size_t(k)].push_back(views[i]);
+  return folds;
+}
+
+core::Camera midway(const core::Camera& a, const core::Camera& b) {
+  const core::Mat4 a_c2w = a.camera_to_world(), b_c2w = b.camera_to_world();
+  const auto qa = core::rotation_to_quat(a_c2w.rotation());
+  auto qb = core::rotation_to_quat(b_c2w.rotation());
+  // q and -q are the same rotation: take the one on a's side, so the sum
+  // (the normalised linear mean, which at one half is the slerp midpoint)
+  // follows the short arc.
+  double dot = 0;
+  for (int i = 0; i < 4; ++i) dot += qa[size_t(i)] * qb[size_t(i)];
+  if (dot < 0)
+    for (double& v : qb) v = -v;
+  std::array<double, 4> q{};
+  double norm = 0;
+  for (size_t i = 0; i < 4; ++i) {
+    q[i] = qa[i] + qb[i];
+    norm += q[i] * q[i];
+  }
+  norm = std::sqrt(norm);
+  for (double& v : q) v /= norm;
+  const core::Vec3 centre = (a_c2w.translation() + b_c2w.translation()) * 0.5;
+  core::Camera out;
+  out.intrinsics = a.intrinsics;
+  out.world_to_camera =
+      core::Mat4::from(core::quat_to_rotation(q[0], q[1], q[2], q[3]), centre).rigid_inverse();
+  return out;
+}
+
+std::vector<core::Camera> between_cameras(const std::vector<core::Camera>& cameras) {
+  std::vector<core::Camera> out;
+  std::set<std::pair<size_t, size_t>> seen;
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    // The two nearest: on a path of cameras (a turntable ring, a flight
+    // line) every gap between consecutive cameras is met.
+    std::vector<std::pair<double, size_t>> by_distance;
+    for (size_t j = 0; j < cameras.size(); ++j)
+      if (j != i) by_distance.push_back({(cameras[j].center() - cameras[i].center()).norm(), j});
+    const size_t keep = std::min<size_t>(2, by_distance.size());
+    std::partial_sort(by_distance.begin(), by_distance.begin() + std::ptrdiff_t(keep),
+                      by_distance.end());
+    for (size_t n = 0; n < keep; ++n) {
+      const size_t j = by_distance[n].second;
+      if (seen.insert({std::min(i, j), std::max(i, j)}).second)
+        out.push_back(midway(cameras[i], cameras[j]));
+    }
+  }
+  return out;
+}
+
+}  // namespace ddhgs::train

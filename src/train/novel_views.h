@@ -1,0 +1,35 @@
+// What the denoiser learns from and what it teaches back (issue 33).
+//
+// Training pairs that look like novel views: the training views are split
+// into interleaved folds, and a short auxiliary model trained without a fold
+// renders that fold's views (Trainer::fold_renders). A render of a view the
+// Gaussians never fitted carries the errors of a test view (interpolation
+// across the gaps between cameras), which renders of fitted training views
+// do not.
+//
+// Pseudo-views for distillation: cameras midway between each training camera
+// and its nearest neighbours, where the Gaussians interpolate; their denoised
+// renders become down-weighted training targets (Trainer distillation phase).
+#pragma once
+#include <vector>
+
+#include "core/camera.h"
+
+namespace ddhgs::train {
+
+// k interleaved folds of `views` (in their order): fold f holds views[i] for
+// i % k == f, so on a turntable each held-out view keeps both neighbours.
+// k is clamped to [1, views.size()].
+std::vector<std::vector<int>> interleaved_folds(const std::vector<int>& views, int k);
+
+// The camera halfway between a and b: centre at the midpoint, rotation the
+// geodesic midpoint of the two, a's intrinsics.
+core::Camera midway(const core::Camera& a, const core::Camera& b);
+
+// One camera midway between each camera and each of its two nearest
+// neighbours (by centre), each unordered pair once, in the order the pairs
+// are first met.
+// Fewer than two cameras give none.
+std::vector<core::Camera> between_cameras(const std::vector<core::Camera>& cameras);
+
+}  // namespace ddhgs::train
