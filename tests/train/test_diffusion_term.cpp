@@ -200,6 +200,41 @@ TEST(DiffusionFinetune, OptionsAndLearningRateSchedule) {
             }).find("preset.json: key 'diffusion.finetune_batch' is 0"),
             std::string::npos);
 
+  // Issue 33's keys: the defaults are the paper's stage, then each one read.
+  config["diffusion"]["finetune_batch"] = 3;
+  o = train::parse_run_config(config, "default").diffusion;
+  EXPECT_TRUE(o.joint);
+  EXPECT_EQ(o.pairs, train::FinetunePairs::Training);
+  EXPECT_EQ(o.distill_steps, 0);
+  train::set_key(config, "diffusion.joint", "false");
+  train::set_key(config, "diffusion.pairs", "folds");
+  train::set_key(config, "diffusion.folds", "3");
+  train::set_key(config, "diffusion.fold_iterations", "0.25");
+  train::set_key(config, "diffusion.distill_steps", "70");
+  train::set_key(config, "diffusion.distill_weight", "0.2");
+  train::set_key(config, "diffusion.distill_every", "3");
+  train::set_key(config, "diffusion.validation_every", "0");
+  o = train::parse_run_config(config, "default").diffusion;
+  EXPECT_FALSE(o.joint);
+  EXPECT_EQ(o.pairs, train::FinetunePairs::Folds);
+  EXPECT_EQ(o.folds, 3);
+  EXPECT_EQ(o.fold_iterations, 0.25);
+  EXPECT_EQ(o.distill_steps, 70);
+  EXPECT_EQ(o.distill_weight, 0.2);
+  EXPECT_EQ(o.distill_every, 3);
+  EXPECT_EQ(o.validation_every, 0);
+  train::set_key(config, "diffusion.pairs", "views");
+  EXPECT_NE(error_of([&] {
+              train::parse_run_config(config, "preset.json");
+            }).find("preset.json: diffusion: pairs is 'views'; expected 'training' or 'folds'"),
+            std::string::npos);
+  config["diffusion"]["pairs"] = "folds";
+  config["diffusion"]["folds"] = 1;  // one fold would hold every view out
+  EXPECT_NE(error_of([&] {
+              train::parse_run_config(config, "preset.json");
+            }).find("preset.json: key 'diffusion.folds' is 1"),
+            std::string::npos);
+
   // Cosine from lr to 0: lr (1 + cos(pi k / K)) / 2.
   EXPECT_DOUBLE_EQ(train::finetune_lr(4e-4, 0, 100), 4e-4);
   EXPECT_NEAR(train::finetune_lr(4e-4, 50, 100), 2e-4, 1e-15);
