@@ -128,7 +128,7 @@ Action setup(CLI::App& parent) {
       "measured on Basil (--rgb --downscale 4, 2000 iterations, 3 seeds; docs/quality.md): the "
       "paper's joint term makes each iteration about 5x slower; the novel-view variant (--set "
       "diffusion.joint=false --set diffusion.pairs=folds --set diffusion.distill_steps=500) "
-      "takes 5-6x the time of the Gaussians alone, its denoised renders score 0.25 dB below its "
+      "takes 5-6x the time of the Gaussians alone, its denoised renders score 0.2-0.3 dB below its "
       "raw render, and the distilled Gaussians score what they scored before it (-0.02 dB on "
       "average).");
   cmd->add_option("data", args->data, "Dataset folder (transforms.json or COLMAP layout)");

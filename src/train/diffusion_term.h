@@ -78,10 +78,11 @@ struct DiffusionTermOptions {
   int64_t distill_steps = 0;
   double distill_weight = 0.5;
   int64_t distill_every = 2;
-  // Every validation_every-th training view (0: none) is left out of the
-  // fine-tuning and denoised after it, to see whether the denoiser helps
-  // views it did not learn from; the distillation runs only if it does.
-  int64_t validation_every = 5;
+  // Every validation_every-th training view (0: none, the default) is left
+  // out of the fine-tuning and denoised after it, to see whether the denoiser
+  // helps views it did not learn from; the distillation then runs only if
+  // it does.
+  int64_t validation_every = 0;
 
   bool enabled() const { return weight > 0; }
 };
