@@ -12,6 +12,21 @@ void add_module_groups(model::Adam& adam, const TrainedModule& module) {
     adam.add(module.name + "/" + item.key(), item.value(), module.lr);
 }
 
+void write_archive(const fs::path& path, torch::serialize::OutputArchive& archive) {
+  io::write_stream_atomically(path, [&](io::FileSink& sink) {
+    archive.save_to([&](const void* data, size_t size) { return sink.write(data, size); });
+  });
+}
+
+void read_archive(const fs::path& path, torch::serialize::InputArchive& archive,
+                  const std::string& unreadable) {
+  try {
+    archive.load_from(path.string());
+  } catch (const c10::Error&) {
+    throw core::Error(path, unreadable);
+  }
+}
+
 void save_checkpoint(const fs::path& path, const TrainState& state) {
   torch::serialize::OutputArchive archive;
   const RunCounters& c = state.counters;
@@ -47,22 +62,14 @@ void save_checkpoint(const fs::path& path, const TrainState& state) {
     modules.write(m.name, sub);
   }
   archive.write("modules", modules);
-
-  // Through a sink: LibTorch's own file writer ends the process when the disk is full.
-  io::write_stream_atomically(path, [&](io::FileSink& sink) {
-    archive.save_to([&](const void* data, size_t size) { return sink.write(data, size); });
-  });
+  write_archive(path, archive);
 }
 
 void load_checkpoint(const fs::path& path, TrainState& state,
                      const model::AdamOptions& adam_options) {
   if (!fs::exists(path)) throw core::Error(path, "no such checkpoint");
   torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path.string());
-  } catch (const c10::Error&) {
-    throw core::Error(path, "not a ddhgs checkpoint (unreadable or truncated)");
-  }
+  read_archive(path, archive, "not a ddhgs checkpoint (unreadable or truncated)");
   c10::IValue meta_value;
   if (!archive.try_read("meta", meta_value) || !meta_value.isString())
     throw core::Error(path, "not a ddhgs checkpoint (no meta record)");

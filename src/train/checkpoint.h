@@ -50,6 +50,14 @@ struct TrainState {
 // Registers the module's parameters as Adam groups "<name>/<parameter>".
 void add_module_groups(model::Adam& adam, const TrainedModule& module);
 
+// A LibTorch archive written atomically, through a sink: LibTorch's own file
+// writer ends the process when the disk is full.
+void write_archive(const std::filesystem::path& path, torch::serialize::OutputArchive& archive);
+// Reads path into archive; core::Error(path, unreadable) when LibTorch
+// cannot (a truncated or foreign file).
+void read_archive(const std::filesystem::path& path, torch::serialize::InputArchive& archive,
+                  const std::string& unreadable);
+
 void save_checkpoint(const std::filesystem::path& path, const TrainState& state);
 
 // Fills state from the file. The Adam groups are created from the saved

@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "io/files/atomic_file.h"
+#include "train/checkpoint.h"
 
 namespace ddhgs::train {
 
@@ -95,20 +95,13 @@ fs::path denoiser_path(const RunPaths& run) {
 void write_denoiser(const fs::path& path, model::Denoiser& denoiser) {
   torch::serialize::OutputArchive archive;
   model::save_denoiser(archive, kArchiveKey, denoiser);
-  // Through a sink: LibTorch's own file writer ends the process when the disk is full.
-  io::write_stream_atomically(path, [&](io::FileSink& sink) {
-    archive.save_to([&](const void* data, size_t size) { return sink.write(data, size); });
-  });
+  write_archive(path, archive);
 }
 
 model::Denoiser read_denoiser(const fs::path& path) {
   core::require(fs::exists(path), path, "no such denoiser file");
   torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path.string());
-  } catch (const c10::Error&) {
-    throw core::Error(path, "not a ddhgs denoiser (unreadable or truncated)");
-  }
+  read_archive(path, archive, "not a ddhgs denoiser (unreadable or truncated)");
   return model::load_denoiser(archive, kArchiveKey, path);
 }
 

@@ -224,11 +224,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   RunWriter::check(run, replace, inputs);  // before the work of loading
   std::unique_ptr<Trainer> t(new Trainer(std::move(parsed), run));
   t->load_scene();  // before touching the output, so bad input leaves it intact
-  InitOptions options = t->config_.init;
-  options.seed = mix_seed(t->config_.seed, 0);
-  t->state_.gaussians = initialise_gaussians(*t->scene_, options, t->colour_);
-  t->state_.stats.reset(t->state_.gaussians.size());
-  t->create_optimizer();
+  t->initialise();
   // Every file the run will read, resolved before anything is moved: a cube
   // inside the folder being replaced would go with it.
   std::vector<fs::path> read = inputs;
@@ -242,6 +238,14 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
                  std::to_string(t->scene_->train.size()) + " views (" +
                  std::to_string(t->scene_->test.size()) + " held out)");
   return t;
+}
+
+void Trainer::initialise() {
+  InitOptions options = config_.init;
+  options.seed = mix_seed(config_.seed, 0);
+  state_.gaussians = initialise_gaussians(*scene_, options, colour_);
+  state_.stats.reset(state_.gaussians.size());
+  create_optimizer();
 }
 
 std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations) {
@@ -337,11 +341,13 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   {
     core::StageScope stage("losses (other)");
     // After the Gaussian iterations (distillation) the joint term is over.
-    std::vector<LossTerm> terms;
-    for (const LossTerm& term : losses_)
-      if (iteration <= config_.iterations || term.name != "diffusion") terms.push_back(term);
-    loss = evaluate_losses(terms, {rendered, target, view, iteration,
-                                   mix_seed(config_.seed, kTermStream + uint64_t(iteration))});
+    std::vector<LossTerm> after;
+    if (iteration > config_.iterations)
+      for (const LossTerm& term : losses_)
+        if (term.name != "diffusion") after.push_back(term);
+    loss = evaluate_losses(iteration > config_.iterations ? after : losses_,
+                           {rendered, target, view, iteration,
+                            mix_seed(config_.seed, kTermStream + uint64_t(iteration))});
     if (pseudo) loss.total = loss.total * diffusion_->options().distill_weight;
   }
   {
@@ -484,11 +490,7 @@ std::map<int, torch::Tensor> Trainer::fold_renders() {
         ~Restore() { core::set_log_level(level); }
       } restore{level};
       t->load_scene();
-      InitOptions init = aux.init;
-      init.seed = mix_seed(aux.seed, 0);
-      t->state_.gaussians = initialise_gaussians(*t->scene_, init, t->colour_);
-      t->state_.stats.reset(t->state_.gaussians.size());
-      t->create_optimizer();
+      t->initialise();
     }
     core::ProgressBar bar("fold " + std::to_string(f + 1) + "/" + std::to_string(folds.size()),
                           aux.iterations);
@@ -534,14 +536,11 @@ void Trainer::make_pseudo_views(int64_t iteration) {
   }
   const fs::path file = run_.pseudo_views();
   if (iteration > finetune_end() + 1 && fs::exists(file)) {
+    const std::string unreadable = "unreadable or truncated: start the run again with --force";
     torch::serialize::InputArchive archive;
+    read_archive(file, archive, unreadable);
     torch::Tensor targets;
-    try {
-      archive.load_from(file.string());
-      archive.read("targets", targets);
-    } catch (const c10::Error&) {
-      throw core::Error(file, "unreadable or truncated: start the run again with --force");
-    }
+    if (!archive.try_read("targets", targets)) throw core::Error(file, unreadable);
     if (targets.dim() != 4 || targets.size(0) != int64_t(cameras.size()))
       throw core::Error(file, "does not hold this run's pseudo-views");
     for (size_t i = 0; i < cameras.size(); ++i)
@@ -569,9 +568,7 @@ void Trainer::make_pseudo_views(int64_t iteration) {
   bar.finish();
   torch::serialize::OutputArchive archive;
   archive.write("targets", torch::stack(targets));
-  io::write_stream_atomically(file, [&](io::FileSink& sink) {
-    archive.save_to([&](const void* data, size_t size) { return sink.write(data, size); });
-  });
+  write_archive(file, archive);
 }
 
 json Trainer::distill_step(int64_t iteration) {
@@ -595,22 +592,13 @@ json Trainer::distill_step(int64_t iteration) {
           " iterations left train on the training views only");
     }
   }
-  if (pseudo_views_.empty()) {
-    json record = step(iteration);
-    record["phase"] = "distill";
-    return record;
-  }
-  const DiffusionTermOptions& o = diffusion_->options();
+  const int64_t every = diffusion_->options().distill_every;
   const int64_t k = iteration - finetune_end() - 1;
-  if (k % o.distill_every != o.distill_every - 1) {
-    json record = step(iteration);
-    record["phase"] = "distill";
-    return record;
-  }
-  const size_t p = size_t(k / o.distill_every) % pseudo_views_.size();
-  json record = step(iteration, &pseudo_views_[p]);
+  const bool on_pseudo = !pseudo_views_.empty() && k % every == every - 1;
+  const size_t p = on_pseudo ? size_t(k / every) % pseudo_views_.size() : 0;
+  json record = step(iteration, on_pseudo ? &pseudo_views_[p] : nullptr);
   record["phase"] = "distill";
-  record["pseudo_view"] = p;
+  if (on_pseudo) record["pseudo_view"] = p;
   return record;
 }
 

@@ -79,6 +79,10 @@ class Trainer {
   // The networks beside the Gaussians, from the config (both start and resume).
   void build_modules();
   void create_optimizer();
+  // Fresh Gaussians from the loaded scene (init section, the run's seed),
+  // their densification statistics and the optimizer: a new run's, or an
+  // auxiliary model's (fold_renders).
+  void initialise();
   void set_learning_rates(int64_t iteration);
   int view_for(int64_t iteration) const;
   // A training view rendered with its camera correction, if any; sink as in
