@@ -21,11 +21,24 @@ const char* const kArchiveKey = "denoiser";
 FinetunePairs parse_finetune_pairs(const std::string& name, const std::string& where) {
   if (name == "training") return FinetunePairs::Training;
   if (name == "folds") return FinetunePairs::Folds;
-  throw core::Error(where, "pairs is '" + name + "'; expected 'training' or 'folds'");
+  if (name == "checkpoint") return FinetunePairs::Checkpoint;
+  if (name == "perturbed") return FinetunePairs::Perturbed;
+  throw core::Error(
+      where, "pairs is '" + name + "'; expected 'training', 'folds', 'checkpoint' or 'perturbed'");
 }
 
 std::string to_string(FinetunePairs pairs) {
-  return pairs == FinetunePairs::Folds ? "folds" : "training";
+  switch (pairs) {
+    case FinetunePairs::Folds:
+      return "folds";
+    case FinetunePairs::Checkpoint:
+      return "checkpoint";
+    case FinetunePairs::Perturbed:
+      return "perturbed";
+    case FinetunePairs::Training:
+      break;
+  }
+  return "training";
 }
 
 DiffusionTerm::DiffusionTerm(const DiffusionTermOptions& options, uint64_t init_seed)

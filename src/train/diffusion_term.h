@@ -23,8 +23,9 @@
 
 namespace ddhgs::train {
 
-enum class FinetunePairs { Training, Folds };
-// "training" | "folds"; core::Error naming `where` otherwise.
+enum class FinetunePairs { Training, Folds, Checkpoint, Perturbed };
+// "training" | "folds" | "checkpoint" | "perturbed"; core::Error naming
+// `where` otherwise.
 FinetunePairs parse_finetune_pairs(const std::string& name, const std::string& where);
 std::string to_string(FinetunePairs pairs);
 
@@ -65,12 +66,20 @@ struct DiffusionTermOptions {
   // what they cost without the stage).
   bool joint = true;
   // What the fine-tuning learns from: renders of the training views by the
-  // Gaussians that fitted them, or renders of each view by an auxiliary model
-  // trained without it (train/novel_views.h): `folds` interleaved folds,
-  // each auxiliary model trained for fold_iterations x the run's iterations.
+  // Gaussians that fitted them, or renders by an auxiliary model that did not
+  // fit the view (train/novel_views.h; Trainer::pair_renders):
+  //   folds: `folds` interleaved folds, each view rendered by a model trained
+  //     without its fold for fold_iterations x the run's iterations;
+  //   checkpoint: every view rendered by the run's own Gaussians as they were
+  //     after fold_iterations x its iterations (an earlier checkpoint,
+  //     recomputed: the same seed and schedule, without the joint term);
+  //   perturbed: every view rendered at its pose by a model trained for
+  //     fold_iterations x the run's iterations on the same views with each
+  //     camera turned by perturb_degrees about its centre (a random axis).
   FinetunePairs pairs = FinetunePairs::Training;
   int64_t folds = 4;
   double fold_iterations = 0.5;
+  double perturb_degrees = 1.0;
   // Distillation: distill_steps Gaussian iterations after the fine-tuning, of
   // which every distill_every-th trains on a pseudo-view (the denoised render
   // midway between two training cameras) with its losses scaled by

@@ -7,6 +7,31 @@
 
 namespace ddhgs::train {
 
+namespace {
+
+// SplitMix64: a uniform double in [0, 1) from a state it advances.
+double next_uniform(uint64_t& state) {
+  uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return double((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+}
+
+}  // namespace
+
+core::Camera turned(const core::Camera& camera, double degrees, uint64_t seed) {
+  uint64_t state = seed;
+  const double z = 2 * next_uniform(state) - 1, phi = 2 * M_PI * next_uniform(state);
+  const double r = std::sqrt(std::max(0.0, 1 - z * z));
+  const double half = 0.5 * degrees * M_PI / 180, s = std::sin(half);
+  const core::Mat3 turn =
+      core::quat_to_rotation(std::cos(half), s * r * std::cos(phi), s * r * std::sin(phi), s * z);
+  const core::Mat4 c2w = camera.camera_to_world();
+  core::Camera out = camera;
+  out.world_to_camera = core::Mat4::from(c2w.rotation() * turn, c2w.translation()).rigid_inverse();
+  return out;
+}
+
 std::vector<std::vector<int>> interleaved_folds(const std::vector<int>& views, int k) {
   k = std::clamp(k, 1, std::max(1, int(views.size())));
   std::vector<std::vector<int>> folds(static_cast<size_t>(k));

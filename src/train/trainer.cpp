@@ -65,7 +65,8 @@ constexpr uint64_t kEncoderInitStream = 1;
 constexpr uint64_t kTermStream = uint64_t(1) << 40;
 // The denoiser U-Net's initial weights (beyond every iteration's term stream).
 constexpr uint64_t kDenoiserInitStream = uint64_t(1) << 41;
-// The auxiliary models of diffusion.pairs = folds: fold f's run seed.
+// The auxiliary models of diffusion.pairs: fold f's run seed; with perturbed,
+// also view v's turn (from the auxiliary model's own seed).
 constexpr uint64_t kFoldStream = uint64_t(1) << 42;
 
 bool every(int64_t iteration, int64_t interval) {
@@ -96,14 +97,20 @@ void Trainer::load_scene() {
   const fs::path& data = config_.data.path;
   core::require(!data.empty(), run_.config(), "data.path is empty: no dataset to train on");
   scene_ = io::load_scene(data, config_.data.load);
-  if (held_out_.empty()) {
+  if (!auxiliary_) {
     io::log_scene_messages(*scene_);
-  } else {  // an auxiliary model of fold_renders(): the main run said it all
-    std::vector<int> train;
-    for (int v : scene_->train)
-      if (std::find(held_out_.begin(), held_out_.end(), v) == held_out_.end()) train.push_back(v);
-    scene_->train = train;
-    scene_->test = held_out_;
+  } else {  // an auxiliary model of pair_renders(): the main run said it all
+    if (!held_out_.empty()) {
+      std::vector<int> train;
+      for (int v : scene_->train)
+        if (std::find(held_out_.begin(), held_out_.end(), v) == held_out_.end()) train.push_back(v);
+      scene_->train = train;
+      scene_->test = held_out_;
+    }
+    if (perturb_degrees_ > 0)
+      for (int v : scene_->train)
+        scene_->views[size_t(v)].camera = turned(scene_->views[size_t(v)].camera, perturb_degrees_,
+                                                 mix_seed(config_.seed, kFoldStream + uint64_t(v)));
   }
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   check_scene_before_training(*scene_);
@@ -421,8 +428,8 @@ json Trainer::finetune_step(int64_t iteration) {
 }
 
 void Trainer::finetune_step_setup() {
-  if (diffusion_->options().pairs == FinetunePairs::Folds && fold_renders_.empty())
-    fold_renders_ = fold_renders();
+  if (diffusion_->options().pairs != FinetunePairs::Training && pair_renders_.empty())
+    pair_renders_ = pair_renders();
   std::vector<int> views;
   validation_views_.clear();
   const int64_t every = diffusion_->options().validation_every;
@@ -430,14 +437,28 @@ void Trainer::finetune_step_setup() {
     (every > 0 && int64_t(i) % every == every / 2 ? validation_views_ : views)
         .push_back(scene_->train[i]);
   if (views.empty()) std::swap(views, validation_views_);
+  {
+    // How much error the pairs carry: their renders against the captures.
+    core::TorchThreads torch_threads;
+    torch::NoGradGuard no_grad;
+    double sum = 0;
+    for (int v : views) sum += eval::psnr_db(denoiser_condition(v).clamp(0, 1), scene_->image(v));
+    denoiser_pairs_psnr_ = sum / double(views.size());
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "denoiser pairs (%s): %zu renders at %.2f dB against their captures",
+                  to_string(diffusion_->options().pairs).c_str(), views.size(),
+                  denoiser_pairs_psnr_.get<double>());
+    core::log_info(text);
+  }
   finetuning_ = std::make_unique<DenoiserFinetuning>(
       *diffusion_, *scene_, [this](int v) { return denoiser_condition(v); }, views);
 }
 
 torch::Tensor Trainer::denoiser_condition(int view) {
-  if (diffusion_->options().pairs == FinetunePairs::Folds) {
-    if (fold_renders_.empty()) fold_renders_ = fold_renders();
-    return fold_renders_.at(view);
+  if (diffusion_->options().pairs != FinetunePairs::Training) {
+    if (pair_renders_.empty()) pair_renders_ = pair_renders();
+    return pair_renders_.at(view);
   }
   torch::NoGradGuard no_grad;
   return render_training_view(view, {}).image;
@@ -468,19 +489,27 @@ void Trainer::validate_denoiser() {
   core::log_info(text);
 }
 
-std::map<int, torch::Tensor> Trainer::fold_renders() {
+std::map<int, torch::Tensor> Trainer::pair_renders() {
   const DiffusionTermOptions& o = diffusion_->options();
-  const auto folds = interleaved_folds(scene_->train, int(o.folds));
+  // Who renders what: folds, one model per fold rendering the fold it left
+  // out; checkpoint and perturbed, one model rendering every training view.
+  const std::vector<std::vector<int>> groups = o.pairs == FinetunePairs::Folds
+                                                   ? interleaved_folds(scene_->train, int(o.folds))
+                                                   : std::vector<std::vector<int>>{scene_->train};
   RunConfig aux = config_;
-  aux.iterations =
+  const int64_t steps =
       std::max<int64_t>(1, std::llround(o.fold_iterations * double(config_.iterations)));
+  // An earlier checkpoint keeps the run's schedule and seed and stops early.
+  if (o.pairs != FinetunePairs::Checkpoint) aux.iterations = steps;
   aux.diffusion.weight = 0;  // an auxiliary model has no denoiser of its own
   std::map<int, torch::Tensor> renders;
   const auto start = std::chrono::steady_clock::now();
-  for (size_t f = 0; f < folds.size(); ++f) {
-    aux.seed = mix_seed(config_.seed, kFoldStream + f);
+  for (size_t f = 0; f < groups.size(); ++f) {
+    if (o.pairs != FinetunePairs::Checkpoint) aux.seed = mix_seed(config_.seed, kFoldStream + f);
     std::unique_ptr<Trainer> t(new Trainer(aux, run_));
-    t->held_out_ = folds[f];
+    t->auxiliary_ = true;
+    if (o.pairs == FinetunePairs::Folds) t->held_out_ = groups[f];
+    if (o.pairs == FinetunePairs::Perturbed) t->perturb_degrees_ = o.perturb_degrees;
     {
       // The main run has said what loading and initialising say.
       const core::LogLevel level = core::log_level();
@@ -492,9 +521,13 @@ std::map<int, torch::Tensor> Trainer::fold_renders() {
       t->load_scene();
       t->initialise();
     }
-    core::ProgressBar bar("fold " + std::to_string(f + 1) + "/" + std::to_string(folds.size()),
-                          aux.iterations);
-    for (int64_t i = 0; i < aux.iterations; ++i) {
+    const int64_t n = std::min(steps, aux.iterations);
+    const std::string label =
+        o.pairs == FinetunePairs::Folds
+            ? "fold " + std::to_string(f + 1) + "/" + std::to_string(groups.size())
+            : to_string(o.pairs);
+    core::ProgressBar bar(label, n);
+    for (int64_t i = 0; i < n; ++i) {
       if (g_stop) throw core::Error(run_.root, "interrupted while training the auxiliary models");
       t->advance();
       bar.update(t->state_.iteration);
@@ -502,13 +535,26 @@ std::map<int, torch::Tensor> Trainer::fold_renders() {
     bar.finish();
     torch::NoGradGuard no_grad;
     const torch::Tensor offsets = t->band_offsets();
-    for (int v : folds[f])
-      renders[v] = eval::render_view(*t->scene_, t->state_.gaussians, t->background_, v, offsets);
+    // At the views' own poses (the main scene's cameras: a perturbed model's
+    // are turned).
+    for (int v : groups[f])
+      renders[v] = eval::render_view(*scene_, t->state_.gaussians, t->background_, v, offsets);
+  }
+  std::string who;
+  if (o.pairs == FinetunePairs::Folds)
+    who = std::to_string(groups.size()) + " auxiliary models that never saw them (" +
+          std::to_string(steps) + " iterations each";
+  else if (o.pairs == FinetunePairs::Checkpoint)
+    who = "the Gaussians as they were at iteration " + std::to_string(steps) + " (recomputed";
+  else {
+    char degrees[32];
+    std::snprintf(degrees, sizeof degrees, "%g", o.perturb_degrees);
+    who = "a model trained on them with each camera turned by " + std::string(degrees) +
+          " degrees (" + std::to_string(steps) + " iterations";
   }
   core::log_info(
-      "denoiser pairs: " + std::to_string(renders.size()) + " training views rendered by " +
-      std::to_string(folds.size()) + " auxiliary models that never saw them (" +
-      std::to_string(aux.iterations) + " iterations each, " +
+      "denoiser pairs: " + std::to_string(renders.size()) + " training views rendered by " + who +
+      ", " +
       core::format_duration(
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) +
       ")");
@@ -681,6 +727,7 @@ void Trainer::write_outputs(double seconds, const json& test_at_end) {
   if (diffusion_) {
     if (!denoiser_validation_.is_null()) summary["denoiser_validation"] = denoiser_validation_;
     summary["denoiser_pairs"] = to_string(diffusion_->options().pairs);
+    if (!denoiser_pairs_psnr_.is_null()) summary["denoiser_pairs_psnr"] = denoiser_pairs_psnr_;
     summary["distill_steps"] = diffusion_->options().distill_steps;
     summary["pseudo_views"] = pseudo_views_.size();
   }

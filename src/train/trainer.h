@@ -81,7 +81,7 @@ class Trainer {
   void create_optimizer();
   // Fresh Gaussians from the loaded scene (init section, the run's seed),
   // their densification statistics and the optimizer: a new run's, or an
-  // auxiliary model's (fold_renders).
+  // auxiliary model's (pair_renders).
   void initialise();
   void set_learning_rates(int64_t iteration);
   int view_for(int64_t iteration) const;
@@ -105,9 +105,10 @@ class Trainer {
   int64_t finetune_end() const;
   // One denoiser-only step after the Gaussian iterations (DenoiserFinetuning).
   nlohmann::json finetune_step(int64_t iteration);
-  // Each training view rendered by an auxiliary model trained without its
-  // fold (diffusion.pairs = folds; train/novel_views.h), by view index.
-  std::map<int, torch::Tensor> fold_renders();
+  // Each training view rendered by an auxiliary model that did not fit it
+  // (diffusion.pairs folds, checkpoint or perturbed; train/novel_views.h),
+  // by view index.
+  std::map<int, torch::Tensor> pair_renders();
   // One distillation step after the fine-tuning: a pseudo-view every
   // diffusion.distill_every-th step, else a training view.
   nlohmann::json distill_step(int64_t iteration);
@@ -146,13 +147,18 @@ class Trainer {
   std::unique_ptr<DiffusionTerm> diffusion_;        // loss.diffusion > 0
   torch::Tensor wavelengths01_;                     // [N] the encoder's input
   std::unique_ptr<DenoiserFinetuning> finetuning_;  // made on its first step
-  std::map<int, torch::Tensor> fold_renders_;       // diffusion.pairs = folds
+  std::map<int, torch::Tensor> pair_renders_;       // diffusion.pairs != training
   std::vector<PseudoView> pseudo_views_;            // made on the first distillation step
   std::vector<int> validation_views_;               // training views the denoiser leaves out
   nlohmann::json denoiser_validation_;              // null until validate_denoiser()
+  nlohmann::json denoiser_pairs_psnr_;              // mean dB of the pairs; null until made
   bool distilling_ = false;                         // whether to distil is decided
-  // An auxiliary model's training views leave these out (fold_renders).
+  // An auxiliary model of pair_renders(): quiet about the scene; its training
+  // views leave held_out_ out, and its training cameras are turned by
+  // perturb_degrees_.
+  bool auxiliary_ = false;
   std::vector<int> held_out_;
+  double perturb_degrees_ = 0;
   // Holds a latent colour model's basis and mean as trained parameters;
   // attach_colour() hands them to the Gaussians.
   std::shared_ptr<torch::nn::Module> colour_module_;

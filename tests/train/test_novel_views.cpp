@@ -101,3 +101,23 @@ TEST(NovelViews, BetweenCamerasFillsEveryGapOfARingOnce) {
   EXPECT_TRUE(train::between_cameras({ring[0]}).empty());
   EXPECT_EQ(train::between_cameras({ring[0], ring[1]}).size(), 1u);
 }
+
+TEST(NovelViews, TurnedKeepsTheCentreAndTurnsByTheAngleAboutASeededAxis) {
+  const core::Camera c = ring_camera(30);
+  const core::Camera a = train::turned(c, 2.0, 7), b = train::turned(c, 2.0, 8);
+  EXPECT_NEAR(rotation_angle_deg(c.camera_to_world().rotation(), a.camera_to_world().rotation()),
+              2.0, 1e-9);
+  EXPECT_LT((a.center() - c.center()).norm(), 1e-12);
+  EXPECT_EQ(a.intrinsics.fx, c.intrinsics.fx);
+  // The same seed, the same turn; another seed, another axis (so the two
+  // turned cameras differ from each other by more than nothing).
+  const core::Camera again = train::turned(c, 2.0, 7);
+  EXPECT_EQ(a.world_to_camera(0, 1), again.world_to_camera(0, 1));
+  EXPECT_EQ(a.world_to_camera(2, 0), again.world_to_camera(2, 0));
+  EXPECT_GT(rotation_angle_deg(a.camera_to_world().rotation(), b.camera_to_world().rotation()),
+            0.1);
+  // Zero degrees: the camera itself.
+  EXPECT_NEAR(rotation_angle_deg(c.camera_to_world().rotation(),
+                                 train::turned(c, 0.0, 7).camera_to_world().rotation()),
+              0.0, 1e-6);
+}
