@@ -100,7 +100,7 @@ constexpr Range kRanges[] = {
     {"diffusion.sampler_samples", 1, 1000, false, true},
     {"diffusion.folds", 2, 1000, false, true},
     {"diffusion.fold_iterations", 0, 100, true},
-    {"diffusion.perturb_degrees", 0, 90, false},
+    {"diffusion.perturb_px", 0, 1e4, false},
     {"diffusion.distill_steps", 0, kMaxCount, false, true},
     {"diffusion.distill_weight", 0, kMaxWeight, false},
     {"diffusion.distill_every", 1, kMaxCount, false, true},

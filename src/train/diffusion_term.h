@@ -75,11 +75,12 @@ struct DiffusionTermOptions {
   //     recomputed: the same seed and schedule, without the joint term);
   //   perturbed: every view rendered at its pose by a model trained for
   //     fold_iterations x the run's iterations on the same views with each
-  //     camera turned by perturb_degrees about its centre (a random axis).
+  //     camera turned about its centre (a random axis) by the angle that moves
+  //     the image centre perturb_px pixels.
   FinetunePairs pairs = FinetunePairs::Training;
   int64_t folds = 4;
   double fold_iterations = 0.5;
-  double perturb_degrees = 1.0;
+  double perturb_px = 2.0;
   // Distillation: distill_steps Gaussian iterations after the fine-tuning, of
   // which every distill_every-th trains on a pseudo-view (the denoised render
   // midway between two training cameras) with its losses scaled by

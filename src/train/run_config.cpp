@@ -148,7 +148,7 @@ DiffusionTermOptions parse_diffusion(const json& d, double weight, uint64_t seed
   o.pairs = parse_finetune_pairs(read<std::string>(d, s, "pairs", source), source + ": diffusion");
   o.folds = read<int64_t>(d, s, "folds", source);
   o.fold_iterations = read<double>(d, s, "fold_iterations", source);
-  o.perturb_degrees = read<double>(d, s, "perturb_degrees", source);
+  o.perturb_px = read<double>(d, s, "perturb_px", source);
   o.distill_steps = read<int64_t>(d, s, "distill_steps", source);
   o.distill_weight = read<double>(d, s, "distill_weight", source);
   o.distill_every = read<int64_t>(d, s, "distill_every", source);
@@ -230,7 +230,7 @@ const std::vector<std::string>& finetune_keys() {
   static const std::vector<std::string> keys = {
       "finetune_steps", "finetune_batch", "finetune_crop",   "finetune_cache_mb",
       "pairs",          "folds",          "fold_iterations", "validation_every",
-      "distill_steps",  "distill_weight", "distill_every",   "perturb_degrees"};
+      "distill_steps",  "distill_weight", "distill_every",   "perturb_px"};
   return keys;
 }
 

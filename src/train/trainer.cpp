@@ -107,10 +107,13 @@ void Trainer::load_scene() {
       scene_->train = train;
       scene_->test = held_out_;
     }
-    if (perturb_degrees_ > 0)
-      for (int v : scene_->train)
-        scene_->views[size_t(v)].camera = turned(scene_->views[size_t(v)].camera, perturb_degrees_,
-                                                 mix_seed(config_.seed, kFoldStream + uint64_t(v)));
+    if (perturb_px_ > 0)
+      for (int v : scene_->train) {
+        // perturb_px_ pixels at the image centre, whatever the lens.
+        core::Camera& camera = scene_->views[size_t(v)].camera;
+        const double degrees = std::atan(perturb_px_ / camera.intrinsics.fx) * 180 / M_PI;
+        camera = turned(camera, degrees, mix_seed(config_.seed, kFoldStream + uint64_t(v)));
+      }
   }
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   check_scene_before_training(*scene_);
@@ -509,7 +512,7 @@ std::map<int, torch::Tensor> Trainer::pair_renders() {
     std::unique_ptr<Trainer> t(new Trainer(aux, run_));
     t->auxiliary_ = true;
     if (o.pairs == FinetunePairs::Folds) t->held_out_ = groups[f];
-    if (o.pairs == FinetunePairs::Perturbed) t->perturb_degrees_ = o.perturb_degrees;
+    if (o.pairs == FinetunePairs::Perturbed) t->perturb_px_ = o.perturb_px;
     {
       // The main run has said what loading and initialising say.
       const core::LogLevel level = core::log_level();
@@ -547,10 +550,10 @@ std::map<int, torch::Tensor> Trainer::pair_renders() {
   else if (o.pairs == FinetunePairs::Checkpoint)
     who = "the Gaussians as they were at iteration " + std::to_string(steps) + " (recomputed";
   else {
-    char degrees[32];
-    std::snprintf(degrees, sizeof degrees, "%g", o.perturb_degrees);
-    who = "a model trained on them with each camera turned by " + std::string(degrees) +
-          " degrees (" + std::to_string(steps) + " iterations";
+    char px[32];
+    std::snprintf(px, sizeof px, "%g", o.perturb_px);
+    who = "a model trained on them with each camera turned by " + std::string(px) + " px (" +
+          std::to_string(steps) + " iterations";
   }
   core::log_info(
       "denoiser pairs: " + std::to_string(renders.size()) + " training views rendered by " + who +

@@ -154,11 +154,11 @@ class Trainer {
   nlohmann::json denoiser_pairs_psnr_;              // mean dB of the pairs; null until made
   bool distilling_ = false;                         // whether to distil is decided
   // An auxiliary model of pair_renders(): quiet about the scene; its training
-  // views leave held_out_ out, and its training cameras are turned by
-  // perturb_degrees_.
+  // views leave held_out_ out, and its training cameras are turned so that
+  // their images move by perturb_px_ pixels.
   bool auxiliary_ = false;
   std::vector<int> held_out_;
-  double perturb_degrees_ = 0;
+  double perturb_px_ = 0;
   // Holds a latent colour model's basis and mean as trained parameters;
   // attach_colour() hands them to the Gaussians.
   std::shared_ptr<torch::nn::Module> colour_module_;

@@ -285,7 +285,7 @@ TEST(DenoiserCli, CheckpointAndPerturbedPairsAreRendersTheRunDidNotFit) {
   EXPECT_NE(out.find("rendered by the Gaussians as they were at iteration 40"), std::string::npos)
       << out;
   EXPECT_EQ(at_end, fitted);
-  // Measured: 20.06 dB fitted, 15.75 at iteration 20, 19.93 with 3-degree turns.
+  // Measured: 20.06 dB fitted, 15.75 at iteration 20, 19.91 with 3 px turns.
   const double halfway = pairs_psnr(
       "halfway", " --set diffusion.pairs=checkpoint --set diffusion.fold_iterations=0.5");
   EXPECT_NE(out.find("rendered by the Gaussians as they were at iteration 20"), std::string::npos)
@@ -294,8 +294,8 @@ TEST(DenoiserCli, CheckpointAndPerturbedPairsAreRendersTheRunDidNotFit) {
   const double perturbed =
       pairs_psnr("perturbed",
                  " --set diffusion.pairs=perturbed --set diffusion.fold_iterations=1"
-                 " --set diffusion.perturb_degrees=3");
-  EXPECT_NE(out.find("each camera turned by 3 degrees (40 iterations"), std::string::npos) << out;
+                 " --set diffusion.perturb_px=3");
+  EXPECT_NE(out.find("each camera turned by 3 px (40 iterations"), std::string::npos) << out;
   EXPECT_EQ(read_json(runs / "perturbed" / "train_summary.json")["denoiser_pairs"], "perturbed");
   EXPECT_LT(perturbed, fitted - 0.05);
 }

@@ -223,12 +223,12 @@ TEST(DiffusionFinetune, OptionsAndLearningRateSchedule) {
   EXPECT_EQ(o.distill_weight, 0.2);
   EXPECT_EQ(o.distill_every, 3);
   EXPECT_EQ(o.validation_every, 0);
-  EXPECT_EQ(o.perturb_degrees, 1.0);
+  EXPECT_EQ(o.perturb_px, 2.0);
   train::set_key(config, "diffusion.pairs", "perturbed");
-  train::set_key(config, "diffusion.perturb_degrees", "2.5");
+  train::set_key(config, "diffusion.perturb_px", "2.5");
   o = train::parse_run_config(config, "default").diffusion;
   EXPECT_EQ(o.pairs, train::FinetunePairs::Perturbed);
-  EXPECT_EQ(o.perturb_degrees, 2.5);
+  EXPECT_EQ(o.perturb_px, 2.5);
   EXPECT_EQ(train::to_string(o.pairs), "perturbed");
   train::set_key(config, "diffusion.pairs", "checkpoint");
   EXPECT_EQ(train::parse_run_config(config, "default").diffusion.pairs,
@@ -239,12 +239,12 @@ TEST(DiffusionFinetune, OptionsAndLearningRateSchedule) {
                       "'checkpoint' or 'perturbed'"),
             std::string::npos);
   config["diffusion"]["pairs"] = "folds";
-  config["diffusion"]["perturb_degrees"] = 91;
+  config["diffusion"]["perturb_px"] = -1;
   EXPECT_NE(error_of([&] {
               train::parse_run_config(config, "preset.json");
-            }).find("preset.json: key 'diffusion.perturb_degrees' is 91"),
+            }).find("preset.json: key 'diffusion.perturb_px' is -1"),
             std::string::npos);
-  config["diffusion"]["perturb_degrees"] = 1.0;
+  config["diffusion"]["perturb_px"] = 2.0;
   config["diffusion"]["pairs"] = "folds";
   config["diffusion"]["folds"] = 1;  // one fold would hold every view out
   EXPECT_NE(error_of([&] {
