@@ -130,7 +130,8 @@ Action setup(CLI::App& parent) {
       "diffusion.joint=false --set diffusion.pairs=folds --set diffusion.distill_steps=500) "
       "takes 5-6x the time of the Gaussians alone, its denoised renders score 0.2-0.3 dB below its "
       "raw render, and the distilled Gaussians score what they scored before it (-0.02 dB on "
-      "average).");
+      "average). Its cheaper pair sources (diffusion.pairs=checkpoint or perturbed) take "
+      "3.5-4.5x and do no better.");
   cmd->add_option("data", args->data, "Dataset folder (transforms.json or COLMAP layout)");
   cmd->add_option("--out", args->out, "Run folder to create");
   cmd->add_option("--preset", args->preset, "Preset name in configs/ or a .json path")
