@@ -5,23 +5,21 @@
 #include <set>
 #include <utility>
 
+#include "train/seed.h"
+
 namespace ddhgs::train {
 
 namespace {
 
-// SplitMix64: a uniform double in [0, 1) from a state it advances.
-double next_uniform(uint64_t& state) {
-  uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return double((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+// A uniform double in [0, 1) from stream `stream` of `seed`.
+double uniform(uint64_t seed, uint64_t stream) {
+  return double(mix_seed(seed, stream) >> 11) * 0x1.0p-53;
 }
 
 }  // namespace
 
 core::Camera turned(const core::Camera& camera, double degrees, uint64_t seed) {
-  uint64_t state = seed;
-  const double z = 2 * next_uniform(state) - 1, phi = 2 * M_PI * next_uniform(state);
+  const double z = 2 * uniform(seed, 0) - 1, phi = 2 * M_PI * uniform(seed, 1);
   const double r = std::sqrt(std::max(0.0, 1 - z * z));
   const double half = 0.5 * degrees * M_PI / 180, s = std::sin(half);
   const core::Mat3 turn =

@@ -25,12 +25,9 @@
 #include "train/run_config.h"
 #include "train/run_folder.h"
 #include "train/schedule.h"
+#include "train/seed.h"
 
 namespace ddhgs::train {
-
-// Mixes a seed with a stream id (splitmix64): every random draw of training
-// depends only on (seed, stream), never on what was drawn before.
-uint64_t mix_seed(uint64_t seed, uint64_t stream);
 
 enum class TrainStatus { Finished, Interrupted };
 
