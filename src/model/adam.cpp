@@ -54,15 +54,36 @@ const AdamGroup& Adam::group(const std::string& name) const {
 }
 
 void Adam::step() {
+  step({}, {});
+}
+
+void Adam::step(const std::vector<std::string>& row_prefixes, const torch::Tensor& rows) {
   torch::NoGradGuard no_grad;
   for (auto& g : groups_) {
     const torch::Tensor& grad_ref = g.param.grad();
     if (!grad_ref.defined() || g.param.numel() == 0) continue;
     auto grad = grad_ref.to(torch::kFloat32).contiguous();
     ++g.step;
-    fused_adam_update(g.param.data_ptr<float>(), grad.data_ptr<float>(),
-                      g.exp_avg.data_ptr<float>(), g.exp_avg_sq.data_ptr<float>(), g.param.numel(),
-                      g.lr, g.step, options_);
+    bool some_rows = false;
+    for (const std::string& prefix : row_prefixes)
+      some_rows = some_rows || (rows.defined() && g.name.rfind(prefix, 0) == 0);
+    if (!some_rows) {
+      fused_adam_update(g.param.data_ptr<float>(), grad.data_ptr<float>(),
+                        g.exp_avg.data_ptr<float>(), g.exp_avg_sq.data_ptr<float>(),
+                        g.param.numel(), g.lr, g.step, options_);
+      continue;
+    }
+    // The rows as contiguous copies, updated, then written back.
+    auto param = g.param.index_select(0, rows).contiguous();
+    auto exp_avg = g.exp_avg.index_select(0, rows).contiguous();
+    auto exp_avg_sq = g.exp_avg_sq.index_select(0, rows).contiguous();
+    auto row_grad = grad.index_select(0, rows).contiguous();
+    fused_adam_update(param.data_ptr<float>(), row_grad.data_ptr<float>(),
+                      exp_avg.data_ptr<float>(), exp_avg_sq.data_ptr<float>(), param.numel(), g.lr,
+                      g.step, options_);
+    g.param.index_copy_(0, rows, param);
+    g.exp_avg.index_copy_(0, rows, exp_avg);
+    g.exp_avg_sq.index_copy_(0, rows, exp_avg_sq);
   }
 }
 

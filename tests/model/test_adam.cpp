@@ -71,6 +71,47 @@ TEST(Adam, RowStepInBlocksEqualsTheWholeStepBitForBit) {
   EXPECT_TRUE(torch::equal(a.group("p").exp_avg_sq, b.group("p").exp_avg_sq));
 }
 
+TEST(Adam, StepOnRowsLeavesTheOtherRowsAndTheirMomentsAsTheyWere) {
+  torch::manual_seed(4);
+  auto start = torch::randn({12, 3});
+  auto sparse = start.clone().requires_grad_(true);
+  auto dense = start.clone().requires_grad_(true);
+  auto other = start.clone().requires_grad_(true);
+  model::Adam a({0.9, 0.999, 1e-15}), b({0.9, 0.999, 1e-15});
+  a.add("band/p", sparse, 1e-2);
+  a.add("other", other, 1e-2);
+  b.add("band/p", dense, 1e-2);
+  const std::vector<std::vector<int64_t>> draws = {{0, 5, 9}, {1, 5, 11}, {2, 6, 9}};
+  for (const auto& draw : draws) {
+    const auto grad = torch::randn(start.sizes());
+    const auto rows = torch::tensor(draw, torch::kInt64);
+    auto undrawn = torch::ones({12}, torch::kBool);
+    undrawn.index_fill_(0, rows, false);
+    // Reference: the whole step, then the undrawn rows put back.
+    const auto keep = dense.detach().index({undrawn}).clone();
+    const auto keep_m = b.group("band/p").exp_avg.index({undrawn}).clone();
+    const auto keep_v = b.group("band/p").exp_avg_sq.index({undrawn}).clone();
+    dense.mutable_grad() = grad.clone();
+    b.step();
+    {
+      torch::NoGradGuard no_grad;
+      dense.index_put_({undrawn}, keep);
+    }
+    b.group("band/p").exp_avg.index_put_({undrawn}, keep_m);
+    b.group("band/p").exp_avg_sq.index_put_({undrawn}, keep_v);
+    sparse.mutable_grad() = grad.clone();
+    other.mutable_grad() = grad.clone();
+    a.step({"band/"}, rows);
+    EXPECT_TRUE(torch::equal(sparse.index({undrawn}), keep));
+  }
+  EXPECT_TRUE(torch::equal(sparse, dense));
+  EXPECT_TRUE(torch::equal(a.group("band/p").exp_avg, b.group("band/p").exp_avg));
+  EXPECT_TRUE(torch::equal(a.group("band/p").exp_avg_sq, b.group("band/p").exp_avg_sq));
+  // A group the prefixes do not name takes every row: all of it moved.
+  EXPECT_TRUE(((other - start).abs() > 0).all().item<bool>());
+  EXPECT_EQ(a.group("band/p").step, 3);
+}
+
 TEST(Adam, SkipsParametersWithoutGradients) {
   auto p = torch::ones({4}).requires_grad_(true);
   model::Adam adam;
