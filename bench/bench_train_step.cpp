@@ -6,7 +6,9 @@
 //   build/bench/bench_train_step --scene DIR [--downscale D] --only 0 0 G 0
 //   options: --iterations K (timed, default 5), --views V (default 6),
 //            --ranks R[,R...] (model.spectral_rank, default 0: per band; each
-//            rank trains on the same scene, one after the other)
+//            rank trains on the same scene, one after the other),
+//            --bands-per-step S[,S...] (loss.bands_per_step, default 0: all;
+//            each value with each rank)
 //
 // Per case it writes a synthetic scene (`ddhgs synth --preset bayspec` with
 // the case's size and band count, supersample 1) to a temporary folder,
@@ -61,6 +63,7 @@ struct Options {
   fs::path scene;  // use this scene instead of a synthetic one
   int downscale = 1;
   std::vector<int> ranks = {0};
+  std::vector<int> bands_per_step = {0};
 };
 
 struct Usage {
@@ -92,9 +95,11 @@ fs::path write_scene(const Case& c, int views, const fs::path& dir) {
   return out;
 }
 
-nlohmann::json train_config(const fs::path& scene, const Options& o, int64_t gaussians, int rank) {
+nlohmann::json train_config(const fs::path& scene, const Options& o, int64_t gaussians, int rank,
+                            int bands_per_step) {
   nlohmann::json config = train::load_preset("default");
   config["model"]["spectral_rank"] = rank;
+  config["loss"]["bands_per_step"] = bands_per_step;
   config["data"]["path"] = fs::absolute(scene).string();
   config["data"]["downscale"] = o.downscale;
   config["init"]["random"] = true;
@@ -134,16 +139,14 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void run_case(const Case& c, const Options& o) {
-  const TempDir temp;
-  const fs::path& dir = temp.path;
-  const auto synth_start = std::chrono::steady_clock::now();
-  const fs::path scene = o.scene.empty() ? write_scene(c, o.views, dir) : o.scene;
-  const double synth_s = seconds_since(synth_start);
-  for (int rank : o.ranks) {
-    const fs::path run_dir = dir / ("run_" + std::to_string(rank));
-    auto trainer =
-        train::Trainer::start(train_config(scene, o, c.gaussians, rank), {run_dir}, false);
+// One rank and loss.bands_per_step on the scene; the run goes to a folder in dir.
+void run_rank(const Case& c, const Options& o, const fs::path& scene, const fs::path& dir,
+              double synth_s, int rank, int bands_per_step) {
+  {
+    static int runs = 0;  // a fresh folder each time: the final save stays in it
+    const fs::path run_dir = dir / ("run_" + std::to_string(++runs));
+    auto trainer = train::Trainer::start(train_config(scene, o, c.gaussians, rank, bands_per_step),
+                                         {run_dir}, false);
     const auto& views = trainer->scene().views;
     const auto& in = views.at(size_t(trainer->scene().train.front())).camera.intrinsics;
     for (int i = 0; i < o.warmup; ++i) trainer->advance();
@@ -159,11 +162,12 @@ void run_case(const Case& c, const Options& o) {
     const double cpu = d.user + d.system;
     const model::Gaussians& g = trainer->state().gaussians;
     std::printf(
-        "%dx%d, %lld bands, %s, %lld Gaussians, threads %d, %d iterations (after %d warm-up), "
-        "scene %.0f s\n",
+        "%dx%d, %lld bands, %s, loss on %s bands, %lld Gaussians, threads %d, %d iterations "
+        "(after %d warm-up), scene %.0f s\n",
         in.width, in.height, (long long)trainer->scene().bands(),
         g.colour.latent() ? ("rank " + std::to_string(g.colour.rank())).c_str() : "per band",
-        (long long)g.size(), core::thread_count(), k, o.warmup, synth_s);
+        bands_per_step > 0 ? std::to_string(bands_per_step).c_str() : "all", (long long)g.size(),
+        core::thread_count(), k, o.warmup, synth_s);
     std::printf(
         "  per iteration: wall %.3f s, CPU %.3f s (user %.3f + system %.3f, system %.1f %%), "
         "minor faults %lld; peak RSS %.0f MiB\n",
@@ -188,6 +192,17 @@ void run_case(const Case& c, const Options& o) {
   }
 }
 
+void run_case(const Case& c, const Options& o) {
+  const TempDir temp;
+  const fs::path& dir = temp.path;
+  const auto synth_start = std::chrono::steady_clock::now();
+  const fs::path scene = o.scene.empty() ? write_scene(c, o.views, dir) : o.scene;
+  const double synth_s = seconds_since(synth_start);
+  for (int rank : o.ranks)
+    for (int bands_per_step : o.bands_per_step)
+      run_rank(c, o, scene, dir, synth_s, rank, bands_per_step);
+}
+
 [[noreturn]] void usage_error(const char* message) {
   std::fprintf(stderr, "bench_train_step: %s\n", message);
   std::exit(2);
@@ -198,6 +213,17 @@ Options parse(int argc, char** argv) {
   auto number = [&](int& i) {
     if (i + 1 >= argc) usage_error("an option is missing its value");
     return std::atoll(argv[++i]);
+  };
+  auto list = [&](int& i, const char* missing) {
+    if (i + 1 >= argc) usage_error(missing);
+    std::vector<int> values;
+    const std::string text = argv[++i];
+    for (size_t at = 0; at <= text.size();) {
+      const size_t comma = std::min(text.find(',', at), text.size());
+      values.push_back(std::atoi(text.substr(at, comma - at).c_str()));
+      at = comma + 1;
+    }
+    return values;
   };
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--only")) {
@@ -213,14 +239,9 @@ Options parse(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--downscale")) {
       o.downscale = int(number(i));
     } else if (!std::strcmp(argv[i], "--ranks")) {
-      if (i + 1 >= argc) usage_error("--ranks needs a list");
-      o.ranks.clear();
-      std::string list = argv[++i];
-      for (size_t at = 0; at <= list.size();) {
-        const size_t comma = std::min(list.find(',', at), list.size());
-        o.ranks.push_back(std::atoi(list.substr(at, comma - at).c_str()));
-        at = comma + 1;
-      }
+      o.ranks = list(i, "--ranks needs a list");
+    } else if (!std::strcmp(argv[i], "--bands-per-step")) {
+      o.bands_per_step = list(i, "--bands-per-step needs a list");
     } else if (!std::strcmp(argv[i], "--scene")) {
       if (i + 1 >= argc) usage_error("--scene needs a folder");
       o.scene = argv[++i];

@@ -5,6 +5,7 @@
 # the mean PSNR of the 10 % of bands with the lowest SNR, bytes per Gaussian.
 #
 #   scripts/subspace_quality.sh [DIR] [RANKS (default "0 -1")] [ITERATIONS (3000)]
+#                               [BANDS_PER_STEP (loss.bands_per_step values, default "0")]
 #
 # Runs are reused when DIR already holds them. About 5 min per run on 2 cores.
 set -euo pipefail
@@ -13,6 +14,7 @@ B="$here/build/ddhgs"
 dir=${1:-$(mktemp -d /tmp/ddhgs_subspace_XXXXXX)}
 ranks=${2:-"0 -1"}
 iterations=${3:-3000}
+bands_per_step=${4:-0}
 mkdir -p "$dir"
 cd "$dir"
 for preset in bayspec surface-optics noisy-edges; do
@@ -22,11 +24,14 @@ for preset in bayspec surface-optics noisy-edges; do
     --views 40 $extra > synth_$preset.log 2>&1
   for seed in 0 1; do
     for rank in $ranks; do
-      run=run_${preset}_s${seed}_r${rank}
-      [ -f $run/eval/metrics.json ] && continue
-      "$B" train scene_$preset --out $run --iterations $iterations --seed $seed \
-        --set model.spectral_rank=$rank --force > $run.log 2>&1
-      "$B" eval $run --no-denoise >> $run.log 2>&1
+      for bands in $bands_per_step; do
+        run=run_${preset}_s${seed}_r${rank}
+        [ "$bands" = 0 ] || run=${run}_b$bands
+        [ -f $run/eval/metrics.json ] && continue
+        "$B" train scene_$preset --out $run --iterations $iterations --seed $seed \
+          --set model.spectral_rank=$rank --set loss.bands_per_step=$bands --force > $run.log 2>&1
+        "$B" eval $run --no-denoise >> $run.log 2>&1
+      done
     done
   done
 done
@@ -61,5 +66,5 @@ for run in sorted(glob.glob(f"{root}/run_*/")):
     per_band = np.array(m["clean"]["per_band_psnr"]["psnr"])
     print(f"{name:32s} channels {s['colour_channels']:>3}  clean PSNR {m['clean']['psnr']:.3f}"
           f"  SAM {m['clean']['sam']:.4f}  lowest-SNR {len(low)} bands {per_band[low].mean():.2f} dB"
-          f"  {s['bytes_per_gaussian']} B per Gaussian")
+          f"  {s['bytes_per_gaussian']} B per Gaussian  {s['seconds']:.0f} s")
 PY

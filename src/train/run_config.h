@@ -61,7 +61,10 @@ struct OptimConfig {
 
 struct LossConfig {
   double l1 = 0, dssim = 0, spectral = 0;  // weights
-  SpectralLossOptions spectral_options;    // spectral_alpha, spectral_beta, spectral_temperature
+  // A latent colour model's Gaussian iterations measure every term on this
+  // many bands, drawn afresh each iteration (train/band_draw.h); 0: all.
+  int bands_per_step = 0;
+  SpectralLossOptions spectral_options;  // spectral_alpha, spectral_beta, spectral_temperature
   // loss.diffusion is DiffusionTermOptions::weight (RunConfig::diffusion).
 };
 

@@ -19,6 +19,7 @@
 #include "io/ply/ply.h"
 #include "io/scene/backdrop.h"
 #include "model/densify.h"
+#include "train/band_draw.h"
 #include "train/config.h"
 #include "train/init.h"
 #include "train/novel_views.h"
@@ -68,6 +69,8 @@ constexpr uint64_t kDenoiserInitStream = uint64_t(1) << 41;
 // The auxiliary models of diffusion.pairs: fold f's run seed; with perturbed,
 // also view v's turn (from the auxiliary model's own seed).
 constexpr uint64_t kFoldStream = uint64_t(1) << 42;
+// kBandStream + i: the bands iteration i measures (loss.bands_per_step).
+constexpr uint64_t kBandStream = uint64_t(1) << 43;
 
 bool every(int64_t iteration, int64_t interval) {
   return interval > 0 && iteration % interval == 0;
@@ -213,9 +216,11 @@ void Trainer::set_learning_rates(int64_t iteration) {
 }
 
 render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor& sink,
-                                                   const render::ShRestSink& rest_step) {
+                                                   const render::ShRestSink& rest_step,
+                                                   const torch::Tensor& band_map) {
   const core::Camera& camera = scene_->views[view].camera;
   model::Gaussians g = state_.gaussians;  // handles to the same tensors
+  if (band_map.defined()) g.colour = g.colour.mapped(band_map);
   if (camera_refinement_)
     std::tie(g.means, g.quats) = camera_refinement_->move(view, camera, g.means, g.quats, extent_);
   return model::render_gaussians(g, camera, background_, band_offsets(), sink, rest_step);
@@ -309,6 +314,17 @@ int Trainer::view_for(int64_t iteration) const {
   return scene_->train[size_t(order[position].item<int64_t>())];
 }
 
+torch::Tensor Trainer::step_bands(int64_t iteration, int view) const {
+  const int64_t count = config_.loss.bands_per_step, bands = scene_->bands();
+  // Per band, a band's SH would learn only when drawn; the joint diffusion
+  // term conditions on the whole render; a band-per-view camera holds its own.
+  const bool joint = diffusion_ && diffusion_->options().joint;
+  if (count <= 0 || count >= bands || !state_.gaussians.colour.latent() || joint ||
+      scene_->view_bands(view).defined())
+    return {};
+  return draw_bands(bands, count, mix_seed(config_.seed, kBandStream + uint64_t(iteration)));
+}
+
 json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   core::StageScope step_scope("step (other)");
   // The denoiser's convolutions are large enough for LibTorch's own threads.
@@ -322,10 +338,12 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
 
   const int view = pseudo ? -1 : view_for(iteration);
   const core::Camera& camera = pseudo ? pseudo->camera : scene_->views[view].camera;
+  const torch::Tensor bands = pseudo ? torch::Tensor() : step_bands(iteration, view);
   torch::Tensor target;
   {
     core::StageScope stage("view (to float)");
     target = pseudo ? pseudo->target : scene_->image(view);
+    if (bands.defined()) target = select_bands(target, bands);
   }
   auto sink = torch::zeros({g.size(), 2}).requires_grad_(true);
   render::RenderOutput out;
@@ -336,7 +354,9 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     render::ShRestSink rest_step;
     if (g.sh_rest.numel() > 0) rest_step = state_.adam.row_step("sh_rest");
     out = pseudo ? model::render_gaussians(g, camera, background_, band_offsets(), sink, rest_step)
-                 : render_training_view(view, sink, rest_step);
+                 : render_training_view(
+                       view, sink, rest_step,
+                       bands.defined() ? band_selection(bands, scene_->bands()) : torch::Tensor());
   }
   // A view of a band-per-view scene supervises only the bands it holds.
   const torch::Tensor rendered = pseudo ? out.image : scene_->view_slice(view, out.image);
@@ -365,7 +385,11 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   }
   {
     core::StageScope stage("adam");
-    state_.adam.step();
+    // Parameters with one row per band learn on the bands measured.
+    if (bands.defined())
+      state_.adam.step({"background/", "colour_model/"}, bands);
+    else
+      state_.adam.step();
     state_.adam.zero_grad();
     if (camera_refinement_) camera_refinement_->recentre();
   }

@@ -83,9 +83,14 @@ class Trainer {
   void set_learning_rates(int64_t iteration);
   int view_for(int64_t iteration) const;
   // A training view rendered with its camera correction, if any; sink as in
-  // render::rasterize; rest_step receives the SH rest gradient in blocks.
+  // render::rasterize; rest_step receives the SH rest gradient in blocks;
+  // band_map ([M, N], may be undefined) picks the bands rendered.
   render::RenderOutput render_training_view(int view, const torch::Tensor& sink,
-                                            const render::ShRestSink& rest_step = {});
+                                            const render::ShRestSink& rest_step = {},
+                                            const torch::Tensor& band_map = {});
+  // The bands iteration measures (loss.bands_per_step, train/band_draw.h) on
+  // training view `view`, or undefined for all of them.
+  torch::Tensor step_bands(int64_t iteration, int view) const;
   // A distillation target: a camera between training cameras and the
   // denoised render there.
   struct PseudoView {

@@ -1,6 +1,7 @@
 // The training step's fast paths (fused L1 + SSIM, pooled buffers, in-place
 // PSNR) against the LibTorch loss terms they replaced: the gradients of one
-// step, and 20 whole trainer iterations, on a small scene written here.
+// step, and 20 whole trainer iterations, on a small scene written here; and
+// the bands a step measures (loss.bands_per_step).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -11,6 +12,7 @@
 #include "model/adam.h"
 #include "model/gaussians.h"
 #include "support/test_support.h"
+#include "train/band_draw.h"
 #include "train/config.h"
 #include "train/losses.h"
 #include "train/trainer.h"
@@ -231,6 +233,108 @@ TEST(TrainerStep, PsnrInPlaceMatchesTheTensorFormula) {
   // Strided and double inputs take the tensor path.
   EXPECT_NEAR(train::psnr(a.transpose(0, 1), b.transpose(0, 1)), expected, 1e-4);
   EXPECT_NEAR(train::psnr(a.to(torch::kFloat64), b), expected, 1e-4);
+}
+
+TEST(BandDraw, OneBandFromEachStratumEveryBandEquallyOften) {
+  constexpr int64_t kN = 141, kCount = 24, kDraws = 6000;
+  std::vector<int64_t> hits(kN, 0);
+  for (uint64_t seed = 0; seed < uint64_t(kDraws); ++seed) {
+    const torch::Tensor index = train::draw_bands(kN, kCount, seed);
+    ASSERT_EQ(index.size(0), kCount);
+    for (int64_t j = 0; j < kCount; ++j) {
+      const int64_t b = index[j].item<int64_t>();
+      ASSERT_GE(b, j * kN / kCount) << "seed " << seed;
+      ASSERT_LT(b, (j + 1) * kN / kCount) << "seed " << seed;
+      ++hits[size_t(b)];
+    }
+  }
+  // Strata hold 5 or 6 bands: a band is drawn with probability 1/5 or 1/6,
+  // so each band-mean loss term is unbiased up to that difference.
+  for (int64_t b = 0; b < kN; ++b) {
+    int64_t j = 0;
+    while ((j + 1) * kN / kCount <= b) ++j;
+    const double p = 1.0 / double((j + 1) * kN / kCount - j * kN / kCount);
+    EXPECT_NEAR(double(hits[size_t(b)]) / kDraws, p, 4 * std::sqrt(p * (1 - p) / kDraws))
+        << "band " << b;
+  }
+  EXPECT_TRUE(train::draw_bands(kN, kCount, 3).equal(train::draw_bands(kN, kCount, 3)));
+  EXPECT_FALSE(train::draw_bands(kN, kCount, 3).equal(train::draw_bands(kN, kCount, 4)));
+  EXPECT_TRUE(train::draw_bands(5, 9, 1).equal(torch::arange(5, torch::kInt64)));
+  const auto image = torch::rand({70, 90, kN});  // above select_bands' 4096-pixel blocks
+  const auto index = train::draw_bands(kN, kCount, 7);
+  EXPECT_TRUE(train::select_bands(image, index).equal(image.index_select(2, index)));
+}
+
+TEST(BandDraw, TheSelectedDecodeIsTheFullDecodesBandsAndItsGradient) {
+  torch::manual_seed(2);
+  constexpr int64_t kN = 23, kK = 4;
+  model::ColourModel full;
+  full.basis = torch::randn({kN, kK}).requires_grad_(true);
+  full.mean = torch::rand({kN}).requires_grad_(true);
+  const auto z = torch::randn({9, 7, kK}), alpha = torch::rand({9, 7});
+  const auto bg = torch::rand({kN});
+  const torch::Tensor index = train::draw_bands(kN, 5, 11);
+  const auto picked = full.mapped(train::band_selection(index, kN)).decode(z, alpha, bg);
+  const auto reference = full.decode(z, alpha, bg).index_select(2, index);
+  EXPECT_LT((picked - reference).abs().max().item<double>(), 1e-6);
+  // A loss on the picked bands trains exactly their basis rows and means.
+  const auto weights = torch::randn_like(picked);
+  (picked * weights).sum().backward();
+  const auto g_basis = full.basis.grad().clone(), g_mean = full.mean.grad().clone();
+  full.basis.grad().zero_(), full.mean.grad().zero_();
+  (reference * weights).sum().backward();
+  EXPECT_LT((g_basis - full.basis.grad()).abs().max().item<double>(), 1e-4);
+  EXPECT_LT((g_mean - full.mean.grad()).abs().max().item<double>(), 1e-4);
+  const auto rows = (g_basis.abs().sum(1) > 0).to(torch::kInt64);
+  EXPECT_EQ(rows.sum().item<int64_t>(), 5);
+  EXPECT_EQ(rows.index_select(0, index).sum().item<int64_t>(), 5);
+}
+
+TEST(BandDraw, ALatentStepTrainsTheDrawnBandsRowsOnlyAndPerBandIgnoresIt) {
+  const fs::path root = test::temp_dir("trainer_step_bands");
+  const fs::path scene = write_scene(root / "scene");
+  auto config = config_for(scene);
+  config["loss"]["bands_per_step"] = 4;
+  auto latent = train::Trainer::start(config, {root / "latent"}, false);
+  ASSERT_TRUE(latent->state().gaussians.colour.latent());  // 17 bands: the subspace
+  const auto basis = latent->state().gaussians.colour.basis.detach().clone();
+  // Each step moves one basis row, mean entry and background value in each
+  // of the 4 strata of bands (0-3, 4-7, 8-11, 12-16) and leaves the others
+  // exactly where they were, momentum included: plain Adam would go on moving
+  // the rows of the step before.
+  const int64_t strata[5] = {0, 4, 8, 12, 17};
+  for (int step = 1; step <= 4; ++step) {
+    const auto& colour = latent->state().gaussians.colour;
+    const auto basis_before = colour.basis.detach().clone();
+    const auto mean_before = colour.mean.detach().clone();
+    const auto bg_before = latent->state().adam.group("background/value").param.detach().clone();
+    latent->advance();
+    const auto moved = (colour.basis.detach() - basis_before).abs().sum(1) > 0;
+    EXPECT_TRUE(moved.equal((colour.mean.detach() - mean_before) != 0)) << "step " << step;
+    EXPECT_TRUE(moved.equal(
+        (latent->state().adam.group("background/value").param.detach() - bg_before) != 0))
+        << "step " << step;
+    for (int j = 0; j < 4; ++j)
+      EXPECT_EQ(moved.slice(0, strata[j], strata[j + 1]).sum().item<int64_t>(), 1)
+          << "stratum " << j << ", step " << step;
+  }
+  // Every band: the first step moves every row.
+  config["loss"]["bands_per_step"] = 0;
+  auto all = train::Trainer::start(config, {root / "all"}, false);
+  all->advance();
+  EXPECT_EQ(((all->state().gaussians.colour.basis.detach() - basis).abs().sum(1) > 0)
+                .sum()
+                .item<int64_t>(),
+            17);
+  // Per band, every band is measured whatever the key says: bit for bit.
+  config["model"]["spectral_rank"] = 0;
+  config["loss"]["bands_per_step"] = 4;
+  auto per_band = train::Trainer::start(config, {root / "per_band_4"}, false);
+  config["loss"]["bands_per_step"] = 0;
+  auto per_band_all = train::Trainer::start(config, {root / "per_band_0"}, false);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(per_band->advance(), per_band_all->advance());
+  const auto a = per_band->state().gaussians.values(), b = per_band_all->state().gaussians.values();
+  for (size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].equal(b[i])) << i;
 }
 
 }  // namespace
