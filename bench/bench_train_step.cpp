@@ -139,57 +139,53 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// One rank and loss.bands_per_step on the scene; the run goes to a folder in dir.
-void run_rank(const Case& c, const Options& o, const fs::path& scene, const fs::path& dir,
+// One rank and loss.bands_per_step on the scene, trained in run_dir (a new
+// folder each time: the final save stays in it).
+void run_rank(const Case& c, const Options& o, const fs::path& scene, const fs::path& run_dir,
               double synth_s, int rank, int bands_per_step) {
-  {
-    static int runs = 0;  // a fresh folder each time: the final save stays in it
-    const fs::path run_dir = dir / ("run_" + std::to_string(++runs));
-    auto trainer = train::Trainer::start(train_config(scene, o, c.gaussians, rank, bands_per_step),
-                                         {run_dir}, false);
-    const auto& views = trainer->scene().views;
-    const auto& in = views.at(size_t(trainer->scene().train.front())).camera.intrinsics;
-    for (int i = 0; i < o.warmup; ++i) trainer->advance();
-    core::reset_stage_totals();
-    core::enable_stage_timing(true);
-    const Usage before = Usage::now();
-    for (int i = 0; i < o.iterations; ++i) trainer->advance();
-    const Usage after = Usage::now();
-    core::enable_stage_timing(false);
-    const Usage d{after.wall - before.wall, after.user - before.user, after.system - before.system,
-                  after.faults - before.faults};
-    const int k = o.iterations;
-    const double cpu = d.user + d.system;
-    const model::Gaussians& g = trainer->state().gaussians;
-    std::printf(
-        "%dx%d, %lld bands, %s, loss on %s bands, %lld Gaussians, threads %d, %d iterations "
-        "(after %d warm-up), scene %.0f s\n",
-        in.width, in.height, (long long)trainer->scene().bands(),
-        g.colour.latent() ? ("rank " + std::to_string(g.colour.rank())).c_str() : "per band",
-        bands_per_step > 0 ? std::to_string(bands_per_step).c_str() : "all", (long long)g.size(),
-        core::thread_count(), k, o.warmup, synth_s);
-    std::printf(
-        "  per iteration: wall %.3f s, CPU %.3f s (user %.3f + system %.3f, system %.1f %%), "
-        "minor faults %lld; peak RSS %.0f MiB\n",
-        d.wall / k, cpu / k, d.user / k, d.system / k, cpu > 0 ? 100.0 * d.system / cpu : 0.0,
-        (long long)(d.faults / k), peak_rss_mib());
-    print_stages(d, k);
-    // The final save, as the trainer writes it (the encoder is off here).
-    const auto save_start = std::chrono::steady_clock::now();
-    train::save_checkpoint(run_dir / "final.pt", trainer->state());
-    const double checkpoint_s = seconds_since(save_start);
-    const auto ply_start = std::chrono::steady_clock::now();
-    io::write_gaussian_ply(run_dir / "final.ply",
-                           model::to_ply(g, trainer->scene().wavelengths_nm));
-    const double ply_s = seconds_since(ply_start);
-    std::printf(
-        "  %lld bytes per Gaussian in training; final save %.2f s: checkpoint %.2f s (%.0f MB), "
-        "PLY %.2f s (%.0f MB)\n",
-        (long long)model::training_bytes_per_gaussian(g.channels(), g.max_sh_degree()),
-        checkpoint_s + ply_s, checkpoint_s, double(fs::file_size(run_dir / "final.pt")) / 1e6,
-        ply_s, double(fs::file_size(run_dir / "final.ply")) / 1e6);
-    std::fflush(stdout);
-  }
+  auto trainer = train::Trainer::start(train_config(scene, o, c.gaussians, rank, bands_per_step),
+                                       {run_dir}, false);
+  const auto& views = trainer->scene().views;
+  const auto& in = views.at(size_t(trainer->scene().train.front())).camera.intrinsics;
+  for (int i = 0; i < o.warmup; ++i) trainer->advance();
+  core::reset_stage_totals();
+  core::enable_stage_timing(true);
+  const Usage before = Usage::now();
+  for (int i = 0; i < o.iterations; ++i) trainer->advance();
+  const Usage after = Usage::now();
+  core::enable_stage_timing(false);
+  const Usage d{after.wall - before.wall, after.user - before.user, after.system - before.system,
+                after.faults - before.faults};
+  const int k = o.iterations;
+  const double cpu = d.user + d.system;
+  const model::Gaussians& g = trainer->state().gaussians;
+  std::printf(
+      "%dx%d, %lld bands, %s, loss on %s bands, %lld Gaussians, threads %d, %d iterations "
+      "(after %d warm-up), scene %.0f s\n",
+      in.width, in.height, (long long)trainer->scene().bands(),
+      g.colour.latent() ? ("rank " + std::to_string(g.colour.rank())).c_str() : "per band",
+      bands_per_step > 0 ? std::to_string(bands_per_step).c_str() : "all", (long long)g.size(),
+      core::thread_count(), k, o.warmup, synth_s);
+  std::printf(
+      "  per iteration: wall %.3f s, CPU %.3f s (user %.3f + system %.3f, system %.1f %%), "
+      "minor faults %lld; peak RSS %.0f MiB\n",
+      d.wall / k, cpu / k, d.user / k, d.system / k, cpu > 0 ? 100.0 * d.system / cpu : 0.0,
+      (long long)(d.faults / k), peak_rss_mib());
+  print_stages(d, k);
+  // The final save, as the trainer writes it (the encoder is off here).
+  const auto save_start = std::chrono::steady_clock::now();
+  train::save_checkpoint(run_dir / "final.pt", trainer->state());
+  const double checkpoint_s = seconds_since(save_start);
+  const auto ply_start = std::chrono::steady_clock::now();
+  io::write_gaussian_ply(run_dir / "final.ply", model::to_ply(g, trainer->scene().wavelengths_nm));
+  const double ply_s = seconds_since(ply_start);
+  std::printf(
+      "  %lld bytes per Gaussian in training; final save %.2f s: checkpoint %.2f s (%.0f MB), "
+      "PLY %.2f s (%.0f MB)\n",
+      (long long)model::training_bytes_per_gaussian(g.channels(), g.max_sh_degree()),
+      checkpoint_s + ply_s, checkpoint_s, double(fs::file_size(run_dir / "final.pt")) / 1e6, ply_s,
+      double(fs::file_size(run_dir / "final.ply")) / 1e6);
+  std::fflush(stdout);
 }
 
 void run_case(const Case& c, const Options& o) {
@@ -198,9 +194,10 @@ void run_case(const Case& c, const Options& o) {
   const auto synth_start = std::chrono::steady_clock::now();
   const fs::path scene = o.scene.empty() ? write_scene(c, o.views, dir) : o.scene;
   const double synth_s = seconds_since(synth_start);
+  int runs = 0;
   for (int rank : o.ranks)
     for (int bands_per_step : o.bands_per_step)
-      run_rank(c, o, scene, dir, synth_s, rank, bands_per_step);
+      run_rank(c, o, scene, dir / ("run_" + std::to_string(++runs)), synth_s, rank, bands_per_step);
 }
 
 [[noreturn]] void usage_error(const char* message) {

@@ -53,6 +53,13 @@ void require_increasing(const std::vector<double>& from_nm) {
 
 }  // namespace
 
+torch::Tensor selection_map(int64_t bands, const std::vector<int64_t>& rows) {
+  torch::Tensor map = torch::zeros({int64_t(rows.size()), bands}, torch::kFloat64);
+  double* m = map.data_ptr<double>();
+  for (size_t j = 0; j < rows.size(); ++j) m[int64_t(j) * bands + rows[j]] = 1.0;
+  return map;
+}
+
 torch::Tensor interpolation_map(const std::vector<double>& from_nm,
                                 const std::vector<double>& to_nm) {
   require_increasing(from_nm);

@@ -17,6 +17,9 @@ namespace ddhgs::core {
 torch::Tensor interpolation_map(const std::vector<double>& from_nm,
                                 const std::vector<double>& to_nm);
 
+// [R, N] float64 that picks band rows[j] as output row j (one 1 per row).
+torch::Tensor selection_map(int64_t bands, const std::vector<int64_t>& rows);
+
 // "A:B:S" -> A, A + S, ... up to B (inclusive within 1e-9 S); "A,B,C" a list.
 // Throws core::Error naming `option` for anything else.
 std::vector<double> parse_wavelength_list(const std::string& text, const std::string& option);

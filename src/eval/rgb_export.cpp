@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <tuple>
 
+#include "core/band_map.h"
 #include "core/colour.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -48,12 +49,6 @@ std::pair<torch::Tensor, torch::Tensor> colormap_and_slope(const torch::Tensor& 
   return {colour, slope};
 }
 
-torch::Tensor selection_map(int64_t bands, const std::vector<int64_t>& rows) {
-  torch::Tensor map = torch::zeros({3, bands}, torch::kFloat64);
-  for (size_t j = 0; j < rows.size(); ++j) map[int64_t(j)][rows[j]] = 1.0;
-  return map;
-}
-
 std::string nm_text(double wavelength_nm) {
   return core::format_g(wavelength_nm) + " nm";
 }
@@ -85,7 +80,7 @@ ColourMapping cie_mapping(const std::vector<double>& wavelengths_nm, int64_t ban
                           bool srgb_curve) {
   ColourMapping mapping;
   if (core::is_rgb(wavelengths_nm, bands)) {
-    mapping.linear = selection_map(3, {0, 1, 2});
+    mapping.linear = core::selection_map(3, {0, 1, 2});
     mapping.description = "RGB (the model's own three channels)";
     return mapping;
   }
@@ -114,7 +109,7 @@ ColourMapping band_mapping(const std::vector<double>& wavelengths_nm,
     text += (text.empty() ? "" : ", ") + nm_text(wavelengths_nm[size_t(rows.back())]);
   }
   ColourMapping mapping;
-  mapping.linear = selection_map(int64_t(wavelengths_nm.size()), rows);
+  mapping.linear = core::selection_map(int64_t(wavelengths_nm.size()), rows);
   mapping.description = "bands " + text + " as R, G, B";
   return mapping;
 }
@@ -123,7 +118,7 @@ ColourMapping single_band_mapping(const std::vector<double>& wavelengths_nm, dou
                                   Colormap map) {
   const int64_t band = nearest_band(wavelengths_nm, wavelength_nm, "--band");
   ColourMapping mapping;
-  mapping.linear = selection_map(int64_t(wavelengths_nm.size()), {band, band, band});
+  mapping.linear = core::selection_map(int64_t(wavelengths_nm.size()), {band, band, band});
   mapping.curve =
       map == Colormap::Gray ? ColourMapping::Curve::None : ColourMapping::Curve::Colormap;
   mapping.colormap = map;

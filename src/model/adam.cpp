@@ -1,5 +1,6 @@
 #include "model/adam.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
@@ -64,9 +65,10 @@ void Adam::step(const std::vector<std::string>& row_prefixes, const torch::Tenso
     if (!grad_ref.defined() || g.param.numel() == 0) continue;
     auto grad = grad_ref.to(torch::kFloat32).contiguous();
     ++g.step;
-    bool some_rows = false;
-    for (const std::string& prefix : row_prefixes)
-      some_rows = some_rows || (rows.defined() && g.name.rfind(prefix, 0) == 0);
+    const bool some_rows = rows.defined() && std::any_of(row_prefixes.begin(), row_prefixes.end(),
+                                                         [&](const std::string& p) {
+                                                           return g.name.rfind(p, 0) == 0;
+                                                         });
     if (!some_rows) {
       fused_adam_update(g.param.data_ptr<float>(), grad.data_ptr<float>(),
                         g.exp_avg.data_ptr<float>(), g.exp_avg_sq.data_ptr<float>(),

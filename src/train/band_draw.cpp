@@ -34,13 +34,4 @@ torch::Tensor select_bands(const torch::Tensor& image, const torch::Tensor& inde
   return out;
 }
 
-torch::Tensor band_selection(const torch::Tensor& index, int64_t bands) {
-  const int64_t count = index.size(0);
-  torch::Tensor map = torch::zeros({count, bands}, torch::kFloat32);
-  const int64_t* in = index.data_ptr<int64_t>();
-  float* m = map.data_ptr<float>();
-  for (int64_t j = 0; j < count; ++j) m[j * bands + in[j]] = 1.0f;
-  return map;
-}
-
 }  // namespace ddhgs::train

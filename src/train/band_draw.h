@@ -14,16 +14,14 @@ namespace ddhgs::train {
 // count of the bands 0 .. bands - 1, increasing: one from each of count
 // strata of (nearly) equal size, [floor(j N / count), floor((j + 1) N /
 // count)), uniform within it, drawn from seed alone (mix_seed(seed, j)).
-// count >= bands gives every band. int64 [count].
+// count >= bands gives every band. int64 [count]. core::selection_map of
+// them is the map for model::ColourModel::mapped, with which the latent
+// decode computes only them.
 torch::Tensor draw_bands(int64_t bands, int64_t count, uint64_t seed);
 
 // image [H, W, N] float32 (contiguous) at those bands, [H, W, count]: the
 // same values as index_select along the last dimension, in one pass over the
 // pixels (index_select walks the image once per band picked).
 torch::Tensor select_bands(const torch::Tensor& image, const torch::Tensor& index);
-
-// The [count, bands] float32 map that picks those bands (one 1 per row),
-// for model::ColourModel::mapped: the latent decode then computes only them.
-torch::Tensor band_selection(const torch::Tensor& index, int64_t bands);
 
 }  // namespace ddhgs::train

@@ -9,6 +9,7 @@
 #include <functional>
 #include <optional>
 
+#include "core/band_map.h"
 #include "core/buffer_pool.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -72,6 +73,10 @@ constexpr uint64_t kFoldStream = uint64_t(1) << 42;
 // kBandStream + i: the bands iteration i measures (loss.bands_per_step).
 constexpr uint64_t kBandStream = uint64_t(1) << 43;
 
+// The trained modules with one row per band (Adam groups "<module>/<name>").
+constexpr const char* kColourModule = "colour_model";
+constexpr const char* kBackgroundModule = "background";
+
 bool every(int64_t iteration, int64_t interval) {
   return interval > 0 && iteration % interval == 0;
 }
@@ -133,7 +138,7 @@ void Trainer::build_modules() {
     colour_module_ = std::make_shared<torch::nn::Module>();
     colour_.basis = colour_module_->register_parameter("basis", colour_.basis.clone());
     colour_.mean = colour_module_->register_parameter("mean", colour_.mean.clone());
-    add_module("colour_model", colour_module_, config_.optim.basis_lr);
+    add_module(kColourModule, colour_module_, config_.optim.basis_lr);
   }
   const WavelengthEncoderConfig& we = config_.wavelength_encoder;
   if (we.enabled) {
@@ -150,7 +155,7 @@ void Trainer::build_modules() {
     // training views leave room, e.g. right in front of a held-out camera.
     background_module_ = std::make_shared<torch::nn::Module>();
     background_ = background_module_->register_parameter("value", background_.clone());
-    add_module("background", background_module_, config_.optim.background_lr);
+    add_module(kBackgroundModule, background_module_, config_.optim.background_lr);
   }
   if (config_.camera_refinement.enabled) {
     camera_refinement_ = CameraRefinement(int64_t(scene_->views.size()), scene_->train);
@@ -314,6 +319,12 @@ int Trainer::view_for(int64_t iteration) const {
   return scene_->train[size_t(order[position].item<int64_t>())];
 }
 
+torch::Tensor Trainer::band_map(const torch::Tensor& bands) const {
+  if (!bands.defined()) return {};
+  const int64_t* b = bands.data_ptr<int64_t>();
+  return core::selection_map(scene_->bands(), std::vector<int64_t>(b, b + bands.numel()));
+}
+
 torch::Tensor Trainer::step_bands(int64_t iteration, int view) const {
   const int64_t count = config_.loss.bands_per_step, bands = scene_->bands();
   // Per band, a band's SH would learn only when drawn; the joint diffusion
@@ -354,9 +365,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     render::ShRestSink rest_step;
     if (g.sh_rest.numel() > 0) rest_step = state_.adam.row_step("sh_rest");
     out = pseudo ? model::render_gaussians(g, camera, background_, band_offsets(), sink, rest_step)
-                 : render_training_view(
-                       view, sink, rest_step,
-                       bands.defined() ? band_selection(bands, scene_->bands()) : torch::Tensor());
+                 : render_training_view(view, sink, rest_step, band_map(bands));
   }
   // A view of a band-per-view scene supervises only the bands it holds.
   const torch::Tensor rendered = pseudo ? out.image : scene_->view_slice(view, out.image);
@@ -387,7 +396,8 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     core::StageScope stage("adam");
     // Parameters with one row per band learn on the bands measured.
     if (bands.defined())
-      state_.adam.step({"background/", "colour_model/"}, bands);
+      state_.adam.step({kBackgroundModule + std::string("/"), kColourModule + std::string("/")},
+                       bands);
     else
       state_.adam.step();
     state_.adam.zero_grad();

@@ -91,6 +91,8 @@ class Trainer {
   // The bands iteration measures (loss.bands_per_step, train/band_draw.h) on
   // training view `view`, or undefined for all of them.
   torch::Tensor step_bands(int64_t iteration, int view) const;
+  // core::selection_map of those bands; undefined for undefined bands.
+  torch::Tensor band_map(const torch::Tensor& bands) const;
   // A distillation target: a camera between training cameras and the
   // denoised render there.
   struct PseudoView {

@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "core/band_map.h"
 #include "io/cube/cube.h"
 #include "io/scene/scene.h"
 #include "io/transforms/transforms.h"
@@ -274,7 +275,11 @@ TEST(BandDraw, TheSelectedDecodeIsTheFullDecodesBandsAndItsGradient) {
   const auto z = torch::randn({9, 7, kK}), alpha = torch::rand({9, 7});
   const auto bg = torch::rand({kN});
   const torch::Tensor index = train::draw_bands(kN, 5, 11);
-  const auto picked = full.mapped(train::band_selection(index, kN)).decode(z, alpha, bg);
+  const auto picked =
+      full.mapped(core::selection_map(
+                      kN, std::vector<int64_t>(index.data_ptr<int64_t>(),
+                                               index.data_ptr<int64_t>() + index.numel())))
+          .decode(z, alpha, bg);
   const auto reference = full.decode(z, alpha, bg).index_select(2, index);
   EXPECT_LT((picked - reference).abs().max().item<double>(), 1e-6);
   // A loss on the picked bands trains exactly their basis rows and means.
