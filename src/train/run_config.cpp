@@ -90,6 +90,8 @@ LossConfig parse_loss(const json& l, const std::string& source) {
   c.spectral_options.beta = read<double>(l, "loss", "spectral_beta", source);
   c.spectral_options.temperature = read<double>(l, "loss", "spectral_temperature", source);
   c.bands_per_step = read<int>(l, "loss", "bands_per_step", source);
+  c.bands_per_step_until_fraction =
+      read<double>(l, "loss", "bands_per_step_until_fraction", source);
   return c;
 }
 

@@ -64,6 +64,9 @@ struct LossConfig {
   // A latent colour model's Gaussian iterations measure every term on this
   // many bands, drawn afresh each iteration (train/band_draw.h); 0: all.
   int bands_per_step = 0;
+  // ... for this fraction of the Gaussian iterations (the first ones); every
+  // band after.
+  double bands_per_step_until_fraction = 1;
   SpectralLossOptions spectral_options;  // spectral_alpha, spectral_beta, spectral_temperature
   // loss.diffusion is DiffusionTermOptions::weight (RunConfig::diffusion).
 };

@@ -330,8 +330,8 @@ torch::Tensor Trainer::step_bands(int64_t iteration, int view) const {
   // Per band, a band's SH would learn only when drawn; the joint diffusion
   // term conditions on the whole render; a band-per-view camera holds its own.
   const bool joint = diffusion_ && diffusion_->options().joint;
-  if (count <= 0 || count >= bands || !state_.gaussians.colour.latent() || joint ||
-      scene_->view_bands(view).defined())
+  if (count <= 0 || count >= bands || !schedule_.draws_bands(iteration) ||
+      !state_.gaussians.colour.latent() || joint || scene_->view_bands(view).defined())
     return {};
   return draw_bands(bands, count, mix_seed(config_.seed, kBandStream + uint64_t(iteration)));
 }

@@ -34,6 +34,10 @@ TEST(Schedule, FractionsBecomeIterationNumbersOfTheRun) {
   EXPECT_EQ(s.sh_degree_every, 90);
   EXPECT_TRUE(s.densifies(599));
   EXPECT_FALSE(s.densifies(600));
+  // loss.bands_per_step draws bands for the first two thirds, 600 included.
+  EXPECT_EQ(s.bands_drawn_until, 600);
+  EXPECT_TRUE(s.draws_bands(600));
+  EXPECT_FALSE(s.draws_bands(601));
   // An interval that rounds to 0 still happens every iteration; a zero
   // fraction switches it off.
   c["iterations"] = 4;

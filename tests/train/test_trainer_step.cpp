@@ -300,6 +300,8 @@ TEST(BandDraw, ALatentStepTrainsTheDrawnBandsRowsOnlyAndPerBandIgnoresIt) {
   const fs::path scene = write_scene(root / "scene");
   auto config = config_for(scene);
   config["loss"]["bands_per_step"] = 4;
+  // Of 20 iterations, the first 4 draw bands and the rest measure every band.
+  config["loss"]["bands_per_step_until_fraction"] = 0.2;
   auto latent = train::Trainer::start(config, {root / "latent"}, false);
   ASSERT_TRUE(latent->state().gaussians.colour.latent());  // 17 bands: the subspace
   const auto basis = latent->state().gaussians.colour.basis.detach().clone();
@@ -323,6 +325,13 @@ TEST(BandDraw, ALatentStepTrainsTheDrawnBandsRowsOnlyAndPerBandIgnoresIt) {
       EXPECT_EQ(moved.slice(0, strata[j], strata[j + 1]).sum().item<int64_t>(), 1)
           << "stratum " << j << ", step " << step;
   }
+  // Step 5 is past the drawn fraction: every row moves.
+  const auto before_5 = latent->state().gaussians.colour.basis.detach().clone();
+  latent->advance();
+  EXPECT_EQ(((latent->state().gaussians.colour.basis.detach() - before_5).abs().sum(1) > 0)
+                .sum()
+                .item<int64_t>(),
+            17);
   // Every band: the first step moves every row.
   config["loss"]["bands_per_step"] = 0;
   auto all = train::Trainer::start(config, {root / "all"}, false);
