@@ -305,6 +305,10 @@ TEST(BandDraw, ALatentStepTrainsTheDrawnBandsRowsOnlyAndPerBandIgnoresIt) {
   auto latent = train::Trainer::start(config, {root / "latent"}, false);
   ASSERT_TRUE(latent->state().gaussians.colour.latent());  // 17 bands: the subspace
   const auto basis = latent->state().gaussians.colour.basis.detach().clone();
+  // The basis rows (bands) that differ from `before`.
+  const auto rows_moved = [](train::Trainer& t, const torch::Tensor& before) {
+    return (t.state().gaussians.colour.basis.detach() - before).abs().sum(1) > 0;
+  };
   // Each step moves one basis row, mean entry and background value in each
   // of the 4 strata of bands (0-3, 4-7, 8-11, 12-16) and leaves the others
   // exactly where they were, momentum included: plain Adam would go on moving
@@ -316,7 +320,7 @@ TEST(BandDraw, ALatentStepTrainsTheDrawnBandsRowsOnlyAndPerBandIgnoresIt) {
     const auto mean_before = colour.mean.detach().clone();
     const auto bg_before = latent->state().adam.group("background/value").param.detach().clone();
     latent->advance();
-    const auto moved = (colour.basis.detach() - basis_before).abs().sum(1) > 0;
+    const auto moved = rows_moved(*latent, basis_before);
     EXPECT_TRUE(moved.equal((colour.mean.detach() - mean_before) != 0)) << "step " << step;
     EXPECT_TRUE(moved.equal(
         (latent->state().adam.group("background/value").param.detach() - bg_before) != 0))
@@ -328,18 +332,12 @@ TEST(BandDraw, ALatentStepTrainsTheDrawnBandsRowsOnlyAndPerBandIgnoresIt) {
   // Step 5 is past the drawn fraction: every row moves.
   const auto before_5 = latent->state().gaussians.colour.basis.detach().clone();
   latent->advance();
-  EXPECT_EQ(((latent->state().gaussians.colour.basis.detach() - before_5).abs().sum(1) > 0)
-                .sum()
-                .item<int64_t>(),
-            17);
+  EXPECT_EQ(rows_moved(*latent, before_5).sum().item<int64_t>(), 17);
   // Every band: the first step moves every row.
   config["loss"]["bands_per_step"] = 0;
   auto all = train::Trainer::start(config, {root / "all"}, false);
   all->advance();
-  EXPECT_EQ(((all->state().gaussians.colour.basis.detach() - basis).abs().sum(1) > 0)
-                .sum()
-                .item<int64_t>(),
-            17);
+  EXPECT_EQ(rows_moved(*all, basis).sum().item<int64_t>(), 17);
   // Per band, every band is measured whatever the key says: bit for bit.
   config["model"]["spectral_rank"] = 0;
   config["loss"]["bands_per_step"] = 4;
