@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <functional>
@@ -425,11 +426,19 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   core::StageScope stage("metrics");
   json record = {{"iter", iteration}, {"loss", loss.total.item<double>()}};
   for (const auto& [name, value] : loss.terms) record[name] = value;
-  record["train_psnr"] = psnr(rendered, target);
+  if (keeps_record(iteration)) record["train_psnr"] = psnr(rendered, target);
   record["num_gaussians"] = g.size();
   record["densify_added"] = state_.counters.densify_added;
   record["densify_removed"] = state_.counters.densify_removed;
   return record;
+}
+
+bool Trainer::keeps_record(int64_t iteration) const {
+  const int64_t iterations = config_.iterations;
+  // The first and last of the run and the first of the fine-tuning.
+  return (iteration <= iterations && every(iteration, config_.output.test_every)) ||
+         every(iteration, config_.output.log_every) || iteration == total_steps() ||
+         iteration == 1 || iteration == iterations + 1;
 }
 
 json Trainer::advance() {
@@ -789,7 +798,6 @@ TrainStatus Trainer::run() {
 TrainStatus Trainer::run_steps() {
   const int64_t iterations = config_.iterations;
   const int64_t total = total_steps();
-  const int64_t log_every = config_.output.log_every;
   const int64_t checkpoint_every = config_.output.checkpoint_every;
   const int64_t test_every = config_.output.test_every;
   MetricsLog metrics(run_.metrics(), state_.iteration);
@@ -833,9 +841,7 @@ TrainStatus Trainer::run_steps() {
         measuring +=
             std::chrono::duration<double>(std::chrono::steady_clock::now() - measure_start).count();
       }
-      // The first and last of the run and the first of the fine-tuning.
-      if (test || every(iteration, log_every) || iteration == total || iteration == 1 ||
-          iteration == iterations + 1) {
+      if (keeps_record(iteration)) {
         record["seconds"] = elapsed();
         metrics.write(record);
       }
@@ -849,10 +855,15 @@ TrainStatus Trainer::run_steps() {
     }
     return true;
   };
-  auto gaussian_status = [](const json& record) {
+  // The training-view PSNR of the last record that measured it (keeps_record).
+  double shown_psnr = std::nan("");
+  auto gaussian_status = [&shown_psnr](const json& record) {
+    if (record.contains("train_psnr")) shown_psnr = record["train_psnr"].get<double>();
+    char psnr_text[40] = "";
+    if (!std::isnan(shown_psnr))
+      std::snprintf(psnr_text, sizeof psnr_text, "  psnr %.2f dB", shown_psnr);
     char text[160];
-    std::snprintf(text, sizeof text, "loss %.4f  psnr %.2f dB  G %lld",
-                  record["loss"].get<double>(), record["train_psnr"].get<double>(),
+    std::snprintf(text, sizeof text, "loss %.4f%s  G %lld", record["loss"].get<double>(), psnr_text,
                   (long long)record["num_gaussians"].get<int64_t>());
     return std::string(text);
   };

@@ -100,8 +100,14 @@ class Trainer {
     torch::Tensor target;  // [H, W, N]
   };
   // One Gaussian iteration (1-based) on a training view, or on `pseudo` with
-  // its losses scaled by diffusion.distill_weight; returns its metrics record.
+  // its losses scaled by diffusion.distill_weight; returns its metrics record
+  // (train_psnr only where keeps_record).
   nlohmann::json step(int64_t iteration, const PseudoView* pseudo = nullptr);
+  // Whether metrics.jsonl keeps step `iteration`'s record: every
+  // output.log_every and output.test_every steps, the first, the last of the
+  // Gaussian iterations plus one, and the last. Only those measure the
+  // training view's PSNR (about 47 ms a step at 640x512x141).
+  bool keeps_record(int64_t iteration) const;
   // Gaussian iterations plus the denoiser's fine-tuning and distillation
   // steps, if any.
   int64_t total_steps() const;
