@@ -433,12 +433,14 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   return record;
 }
 
+bool Trainer::measures_test_views(int64_t iteration) const {
+  return iteration <= config_.iterations && every(iteration, config_.output.test_every);
+}
+
 bool Trainer::keeps_record(int64_t iteration) const {
-  const int64_t iterations = config_.iterations;
   // The first and last of the run and the first of the fine-tuning.
-  return (iteration <= iterations && every(iteration, config_.output.test_every)) ||
-         every(iteration, config_.output.log_every) || iteration == total_steps() ||
-         iteration == 1 || iteration == iterations + 1;
+  return measures_test_views(iteration) || every(iteration, config_.output.log_every) ||
+         iteration == total_steps() || iteration == 1 || iteration == config_.iterations + 1;
 }
 
 json Trainer::advance() {
@@ -799,7 +801,6 @@ TrainStatus Trainer::run_steps() {
   const int64_t iterations = config_.iterations;
   const int64_t total = total_steps();
   const int64_t checkpoint_every = config_.output.checkpoint_every;
-  const int64_t test_every = config_.output.test_every;
   MetricsLog metrics(run_.metrics(), state_.iteration);
   StopSignalGuard guard;
   g_stop = false;
@@ -832,7 +833,7 @@ TrainStatus Trainer::run_steps() {
       // Test-view PSNR against training time (the report's time-to-quality
       // curve); rendering the test views changes no state, so resume stays
       // bit for bit.
-      const bool test = iteration <= iterations && every(iteration, test_every);
+      const bool test = measures_test_views(iteration);
       if (test) {
         const auto measure_start = std::chrono::steady_clock::now();
         const json measured = test_psnr();

@@ -108,6 +108,9 @@ class Trainer {
   // Gaussian iterations plus one, and the last. Only those measure the
   // training view's PSNR (about 47 ms a step at 640x512x141).
   bool keeps_record(int64_t iteration) const;
+  // Whether step `iteration` renders the test views for their PSNR
+  // (output.test_every, Gaussian iterations only).
+  bool measures_test_views(int64_t iteration) const;
   // Gaussian iterations plus the denoiser's fine-tuning and distillation
   // steps, if any.
   int64_t total_steps() const;
