@@ -146,6 +146,9 @@ class Trainer {
   void write_outputs(double seconds, const nlohmann::json& test_at_end);
   // Mean PSNR (dB) of the held-out views, against noisy and clean ground truth.
   nlohmann::json test_psnr();
+  // Seconds test_psnr() took inside step() (the test records), which the
+  // run's training time leaves out.
+  double test_seconds_ = 0;
 
   RunConfig config_;
   RunPaths run_;

@@ -122,6 +122,43 @@ TEST(TrainCli, TrainsDensifiesAndResumesBitForBit) {
     EXPECT_EQ(resumed[i]["loss"], metrics[i]["loss"]) << i;
 }
 
+// A test record measures the Gaussians its step optimised, before that
+// step's densification changes them. Two runs alike up to iteration 40, where
+// one densifies (every Gaussian with a gradient cloned or split) and the other
+// does not (densify.every 0): both record the same test PSNR at 40, though
+// the first already holds more Gaussians there.
+TEST(TrainCli, TestRecordsMeasureTheModelBeforeItsDensification) {
+  fs::path runs = test::temp_dir("train_cli_test_records");
+  const std::string common =
+      " --preset demo --iterations 60 --set output.test_every=20 --set output.log_every=20"
+      " --set densify.from_fraction=0.5 --set densify.until_fraction=1"
+      " --set densify.opacity_reset_every_fraction=0 --set densify.grad_threshold=0";
+  std::string out;
+  const fs::path densified = runs / "densified", kept = runs / "kept";
+  ASSERT_EQ(
+      train(scene().string() + " --out " + densified.string() + common + " --set densify.every=20",
+            &out),
+      0)
+      << out;
+  ASSERT_EQ(
+      train(scene().string() + " --out " + kept.string() + common + " --set densify.every=0", &out),
+      0)
+      << out;
+  auto at = [](const fs::path& run, int iteration) {
+    for (const auto& record : read_metrics(run / "metrics.jsonl"))
+      if (record["iter"] == iteration) return record;
+    ADD_FAILURE() << run << " has no record of iteration " << iteration;
+    return nlohmann::json::object();
+  };
+  const auto a = at(densified, 40), b = at(kept, 40);
+  ASSERT_TRUE(a.contains("test_psnr_clean")) << a.dump();
+  EXPECT_GT(a["num_gaussians"].get<int64_t>(), b["num_gaussians"].get<int64_t>());
+  EXPECT_EQ(a["test_psnr"], b["test_psnr"]);
+  EXPECT_EQ(a["test_psnr_clean"], b["test_psnr_clean"]);
+  // From there the models differ.
+  EXPECT_NE(at(densified, 60)["test_psnr"], at(kept, 60)["test_psnr"]);
+}
+
 TEST(TrainCli, WavelengthEncoderTrainsResumesAndIsBakedIntoThePly) {
   // A large encoder learning rate so 120 iterations move its offsets visibly.
   const std::string args = " --wavelength-encoder --set wavelength_encoder.lr=1e-3" + kSchedule;
