@@ -408,7 +408,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   // A test record measures the Gaussians this step has optimised, before
   // densification clones, splits, prunes and resets their opacity: measured
   // after, the held-out views would see a model the next steps have not yet
-  // fitted again (2-5 dB low on a densifying iteration, 10-15 dB on an
+  // fitted again (1-6 dB low on a densifying iteration, 13-15 dB on an
   // opacity reset; the iterations between agree, docs/benchmarks.md).
   json tested;
   if (!pseudo && measures_test_views(iteration)) {
