@@ -410,10 +410,10 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   // after, the held-out views would see a model the next steps have not yet
   // fitted again (1-6 dB low on a densifying iteration, 13-15 dB on an
   // opacity reset; the iterations between agree, docs/benchmarks.md).
-  json tested;
-  if (!pseudo && measures_test_views(iteration)) {
+  const bool tested = !pseudo && measures_test_views(iteration);
+  if (tested) {
     const auto measure_start = std::chrono::steady_clock::now();
-    tested = test_psnr();
+    last_test_ = test_psnr();
     test_seconds_ +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - measure_start).count();
   }
@@ -443,7 +443,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   record["num_gaussians"] = g.size();
   record["densify_added"] = state_.counters.densify_added;
   record["densify_removed"] = state_.counters.densify_removed;
-  if (!tested.is_null()) record.update(tested);
+  if (tested) record.update(last_test_);
   return record;
 }
 
@@ -849,11 +849,7 @@ TrainStatus Trainer::run_steps() {
       // Test-view PSNR against training time (the report's time-to-quality
       // curve), taken inside the step (before densification); rendering the
       // test views changes no state, so resume stays bit for bit.
-      if (measures_test_views(iteration) && iteration == iterations) {
-        test_at_end = json::object();
-        for (const char* key : {"test_psnr", "test_psnr_clean"})
-          if (record.contains(key)) test_at_end[key] = record[key];
-      }
+      if (measures_test_views(iteration) && iteration == iterations) test_at_end = last_test_;
       if (keeps_record(iteration)) {
         record["seconds"] = elapsed();
         metrics.write(record);

@@ -146,9 +146,11 @@ class Trainer {
   void write_outputs(double seconds, const nlohmann::json& test_at_end);
   // Mean PSNR (dB) of the held-out views, against noisy and clean ground truth.
   nlohmann::json test_psnr();
-  // Seconds test_psnr() took inside step() (the test records), which the
-  // run's training time leaves out.
+  // The test records, taken inside step(): the seconds test_psnr() took
+  // there, which the run's training time leaves out, and the last record's
+  // figures.
   double test_seconds_ = 0;
+  nlohmann::json last_test_;
 
   RunConfig config_;
   RunPaths run_;
