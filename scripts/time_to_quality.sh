@@ -1,61 +1,74 @@
 #!/bin/bash
 # Time to quality (issue 30, bar 4): a 640x512, 141-band synthetic scene with
-# 112 views (101 training, 11 held out) trained with the default settings for
-# several iteration counts, one run after the other. Prints, per run, the wall
-# clock, the training time and the held-out views' PSNR against clean truth,
-# its gap to the longest finished run, and the test-PSNR-against-time curve.
+# 112 views (101 training, 11 held out) trained for several iteration counts,
+# one run after the other. Prints, per run, the wall clock, the training time
+# and the held-out views' PSNR against clean truth, its gap to the longest
+# finished run with the default settings, and the test-PSNR-against-time
+# curve.
 #
-#   scripts/time_to_quality.sh [DIR] [ITERATIONS (default "6000 12000 30000")]
+#   scripts/time_to_quality.sh [DIR] [RUNS (default "6000 12000 30000")]
 #
+# A run is an iteration count, optionally followed by settings for `--set`,
+# each after a colon: "11000:loss.bands_per_step_until_fraction=0.9" trains
+# 11,000 iterations with that setting, in run_11000_loss.bands_per_...=0.9.
 # Writes into DIR (default a new folder under /tmp; the scene takes 20 GB).
 # Finished runs are reused; an interrupted one continues from its last
 # checkpoint (output.checkpoint_every, 5000), and its wall clock is then not
-# reported. About 42 min for 6000 iterations, 75 min for 12000 on 2 cores.
+# reported. About 42 min for 6000 iterations, 80 min for 12000 on 2 cores.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 B="$here/build/ddhgs"
 dir=${1:-$(mktemp -d /tmp/ddhgs_time_to_quality_XXXXXX)}
-counts=${2:-"6000 12000 30000"}
+runs=${2:-"6000 12000 30000"}
 mkdir -p "$dir"
 cd "$dir"
 [ -f scene/transforms.json ] || "$B" synth --preset bayspec --out scene --views 112 --force \
   > synth.log 2>&1
-for n in $counts; do
-  run=run_$n
-  [ -f $run/train_summary.json ] && continue
+for spec in $runs; do
+  IFS=: read -r n settings <<< "$spec"
+  run=run_$n${settings:+_${settings//:/_}}
+  [ -f "$run/train_summary.json" ] && continue
   echo "$run: start $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)" >&2
-  if [ -f $run/checkpoint.pt ]; then
-    rm -f $run.wall
-    "$B" train --resume $run >> $run.log 2>&1
+  if [ -f "$run/checkpoint.pt" ]; then
+    rm -f "$run.wall"
+    "$B" train --resume "$run" >> "$run.log" 2>&1
   else
+    args=()
+    IFS=: read -ra pairs <<< "$settings"
+    for pair in "${pairs[@]}"; do args+=(--set "$pair"); done
     start=$(date +%s)
-    "$B" train scene --out $run --iterations $n --force > $run.log 2>&1
-    echo $(($(date +%s) - start)) > $run.wall
+    "$B" train scene --out "$run" --iterations "$n" "${args[@]}" --force > "$run.log" 2>&1
+    echo $(($(date +%s) - start)) > "$run.wall"
   fi
 done
-/usr/bin/python3 - "$dir" $counts <<'PY'
+/usr/bin/python3 - "$dir" $runs <<'PY'
 import json, os, sys
 
-root, counts = sys.argv[1], [int(c) for c in sys.argv[2:]]
-runs = {}
-for n in counts:
-    path = os.path.join(root, f"run_{n}")
+root, specs = sys.argv[1], sys.argv[2:]
+runs = []
+for spec in specs:
+    n, *settings = spec.split(":")
+    name = f"run_{n}" + "".join("_" + s for s in settings)
+    path = os.path.join(root, name)
     if not os.path.exists(os.path.join(path, "train_summary.json")):
         continue
     summary = json.load(open(os.path.join(path, "train_summary.json")))
     curve = [(r["seconds"] / 60, r["test_psnr_clean"])
              for r in map(json.loads, open(os.path.join(path, "metrics.jsonl")))
              if "test_psnr_clean" in r]
-    wall = os.path.join(root, f"run_{n}.wall")
-    runs[n] = (summary, curve, int(open(wall).read()) / 60 if os.path.exists(wall) else None)
-if not runs:
-    sys.exit("no finished run")
-best = runs[max(runs)][0]["test_psnr_clean"]
-print(f"longest finished run: {max(runs)} iterations, {best:.3f} dB clean test PSNR")
-for n, (summary, curve, wall) in runs.items():
+    wall = os.path.join(root, f"{name}.wall")
+    runs.append((int(n), settings, name, summary, curve,
+                 int(open(wall).read()) / 60 if os.path.exists(wall) else None))
+defaults = [r for r in runs if not r[1]]
+if not defaults:
+    sys.exit("no finished run with the default settings")
+reference = max(defaults, key=lambda r: r[0])
+best = reference[3]["test_psnr_clean"]
+print(f"longest finished default run: {reference[0]} iterations, {best:.3f} dB clean test PSNR")
+for n, settings, name, summary, curve, wall in runs:
     psnr = summary["test_psnr_clean"]
     wall_text = f"{wall:5.1f} min wall" if wall is not None else "wall not recorded"
-    print(f"{n:6d} iterations  {wall_text}  {summary['seconds'] / 60:5.1f} min training"
+    print(f"{name}  {wall_text}  {summary['seconds'] / 60:5.1f} min training"
           f"  {psnr:.3f} dB ({psnr - best:+.3f})  {summary['num_gaussians']} Gaussians"
           f"  peak RSS {summary['peak_rss_mib'] / 1024:.1f} GiB")
     print("        curve (training minutes: dB): "
