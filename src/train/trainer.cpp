@@ -410,10 +410,10 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   // after, the held-out views would see a model the next steps have not yet
   // fitted again (1-6 dB low on a densifying iteration, 13-15 dB on an
   // opacity reset; the iterations between agree, docs/benchmarks.md).
-  const bool tested = !pseudo && measures_test_views(iteration);
-  if (tested) {
+  step_test_ = json();
+  if (!pseudo && measures_test_views(iteration)) {
     const auto measure_start = std::chrono::steady_clock::now();
-    last_test_ = test_psnr();
+    step_test_ = test_psnr();
     test_seconds_ +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - measure_start).count();
   }
@@ -443,7 +443,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   record["num_gaussians"] = g.size();
   record["densify_added"] = state_.counters.densify_added;
   record["densify_removed"] = state_.counters.densify_removed;
-  if (tested) record.update(last_test_);
+  if (!step_test_.is_null()) record.update(step_test_);
   return record;
 }
 
@@ -849,7 +849,7 @@ TrainStatus Trainer::run_steps() {
       // Test-view PSNR against training time (the report's time-to-quality
       // curve), taken inside the step (before densification); rendering the
       // test views changes no state, so resume stays bit for bit.
-      if (measures_test_views(iteration) && iteration == iterations) test_at_end = last_test_;
+      if (iteration == iterations) test_at_end = step_test_;
       if (keeps_record(iteration)) {
         record["seconds"] = elapsed();
         metrics.write(record);

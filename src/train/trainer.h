@@ -147,10 +147,10 @@ class Trainer {
   // Mean PSNR (dB) of the held-out views, against noisy and clean ground truth.
   nlohmann::json test_psnr();
   // The test records, taken inside step(): the seconds test_psnr() took
-  // there, which the run's training time leaves out, and the last record's
-  // figures.
+  // there, which the run's training time leaves out, and the figures of the
+  // latest step's record (null when that step took none).
   double test_seconds_ = 0;
-  nlohmann::json last_test_;
+  nlohmann::json step_test_;
 
   RunConfig config_;
   RunPaths run_;
