@@ -121,10 +121,17 @@ DensifyResult densify_and_prune(Gaussians& gaussians, Adam& adam, DensifyStats& 
 
   auto opacity = torch::sigmoid(gaussians.logit_opacities.detach().squeeze(1));
   auto prune = opacity < options.min_opacity;
+  result.pruned_transparent = prune.sum().item<int64_t>();
   if (prune_large) {
-    if (options.max_screen_px > 0) prune |= stats.max_radii > options.max_screen_px;
-    auto world = gaussians.log_scales.detach().exp().amax(1);
-    prune |= world > options.max_world_fraction * scene_extent;
+    if (options.max_screen_px > 0) {
+      auto screen = stats.max_radii > options.max_screen_px;
+      result.pruned_screen = screen.sum().item<int64_t>();
+      prune |= screen;
+    }
+    auto world =
+        gaussians.log_scales.detach().exp().amax(1) > options.max_world_fraction * scene_extent;
+    result.pruned_world = world.sum().item<int64_t>();
+    prune |= world;
   }
   result.pruned = prune.sum().item<int64_t>();
   if (result.pruned > 0) keep_gaussians(gaussians, adam, ~prune);

@@ -35,6 +35,9 @@ struct DensifyStats {
 
 struct DensifyResult {
   int64_t cloned = 0, split = 0, pruned = 0;
+  // Why they were pruned (a Gaussian may meet several): transparent, larger
+  // on screen than max_screen_px, larger in the world than the fraction.
+  int64_t pruned_transparent = 0, pruned_screen = 0, pruned_world = 0;
 };
 
 // Clones, splits (2 children sampled from the Gaussian, scales / 1.6), then

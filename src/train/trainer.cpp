@@ -431,7 +431,12 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
       state_.counters.densify_added += r.cloned + r.split;
       state_.counters.densify_removed += r.pruned;
       core::log_debug("densify at " + std::to_string(iteration) + ": " + std::to_string(before) +
-                      " -> " + std::to_string(g.size()));
+                      " -> " + std::to_string(g.size()) + " (" + std::to_string(r.cloned) +
+                      " cloned, " + std::to_string(r.split) + " split, " +
+                      std::to_string(r.pruned) +
+                      " pruned: " + std::to_string(r.pruned_transparent) + " transparent, " +
+                      std::to_string(r.pruned_screen) + " large on screen, " +
+                      std::to_string(r.pruned_world) + " large in the world)");
     }
     if (every(iteration, reset_every)) model::reset_opacity(g, state_.adam);
   }

@@ -109,6 +109,49 @@ TEST(Densify, ClonesSmallSplitsLargeAndMovesMoments) {
   EXPECT_TRUE(adam.group("means").param.is_same(g.means));
 }
 
+TEST(Densify, CountsWhyEachGaussianWasPruned) {
+  torch::manual_seed(14);
+  // 0 kept; 1 transparent; 2 large on screen; 3 large in the world; 4 both
+  // transparent and large on screen (counted under both, pruned once).
+  auto make = [] {
+    auto g = make_gaussians(5, 3);
+    torch::NoGradGuard no_grad;
+    g.logit_opacities[1].fill_(-10.0f);
+    g.logit_opacities[4].fill_(-10.0f);
+    g.log_scales[3].fill_(std::log(0.5f));  // > 0.1 of an extent of 1
+    return g;
+  };
+  auto prune = [&](double max_screen_px, bool prune_large, model::Gaussians& g) {
+    auto adam = make_adam(g);
+    model::DensifyStats stats;
+    stats.reset(5);
+    stats.max_radii = torch::tensor({3.f, 3.f, 40.f, 3.f, 40.f});
+    model::DensifyOptions options;
+    options.grad_threshold = 1e9;  // no growth
+    options.max_screen_px = max_screen_px;
+    auto gen = at::make_generator<at::CPUGeneratorImpl>(3);
+    return model::densify_and_prune(g, adam, stats, options, 1.0, prune_large, gen);
+  };
+  auto g = make();
+  auto r = prune(20, true, g);
+  EXPECT_EQ(r.pruned, 4);
+  EXPECT_EQ(r.pruned_transparent, 2);
+  EXPECT_EQ(r.pruned_screen, 2);
+  EXPECT_EQ(r.pruned_world, 1);
+  ASSERT_EQ(g.size(), 1);
+  // max_screen_px = 0 turns the screen criterion off.
+  auto h = make();
+  r = prune(0, true, h);
+  EXPECT_EQ(r.pruned, 3);
+  EXPECT_EQ(r.pruned_screen, 0);
+  EXPECT_EQ(h.size(), 2);
+  // Before the first opacity reset only transparency prunes.
+  auto k = make();
+  r = prune(20, false, k);
+  EXPECT_EQ(r.pruned, 2);
+  EXPECT_EQ(r.pruned_screen + r.pruned_world, 0);
+}
+
 TEST(Densify, RespectsTheCap) {
   torch::manual_seed(13);
   auto g = make_gaussians(10, 2);
