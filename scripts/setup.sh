@@ -55,10 +55,13 @@ fi
 # ninja's own status decides (a filter in a pipeline with `|| true` would
 # hide a failed build and leave stale binaries to be tested).
 build_log="$build_dir.build.log"
+began=$SECONDS
 if ! ninja -C "$build_dir" -j "$(nproc)" --quiet "${targets[@]}" >"$build_log" 2>&1; then
   cat "$build_log" >&2
   echo "setup: build failed (log: $build_log)" >&2
   exit 1
 fi
 grep -v '^ninja: no work to do' "$build_log" || true
+grep -q '^ninja: no work to do' "$build_log" ||
+  echo "setup: built ${targets[*]} in $((SECONDS - began)) s" >&2
 rm -f "$build_log"

@@ -13,7 +13,9 @@
 # of scripts/sanitize.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+start=$SECONDS
 scripts/setup.sh --with-tests
+set_up=$SECONDS
 build_dir="${BUILD_DIR:-build}"
 
 # Formatting: every C++ file of the tree, as .clang-format says.
@@ -29,6 +31,7 @@ log="$build_dir.ctest.log"
 status=0
 ctest --test-dir "$build_dir" --output-on-failure -j "$(nproc)" "$@" 2>&1 | tee "$log" || status=$?
 [ "$status" = 0 ] || exit "$status"
+tested=$SECONDS
 
 # A skipped test is a check that did not run: only the declared ones may skip.
 mapfile -t skipped < <(sed -n 's/^ *[0-9]*\/[0-9]* Test *#[0-9]*: \([^ ]*\) .*Skipped.*/\1/p' "$log")
@@ -47,5 +50,8 @@ if [ "${DDHGS_SKIP_SANITIZE:-0}" = 1 ]; then
 else
   SANITIZE_BUILD_DIR="${SANITIZE_BUILD_DIR:-$build_dir-sanitize}" scripts/sanitize.sh
 fi
-# CI reads the closing lines: ctest's result again, after the sanitizer's.
+# CI reads the closing lines: ctest's result again, after the sanitizer's,
+# and where the time went (CI has a time limit).
 grep -E '^[0-9]+% tests passed|^Total Test time' "$log" || true
+echo "test: setup and build $((set_up - start)) s, format and ctest $((tested - set_up)) s," \
+  "sanitizer and fuzzing $((SECONDS - tested)) s, in all $((SECONDS - start)) s"

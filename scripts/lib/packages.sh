@@ -19,7 +19,7 @@ ensure_packages() {
       exit 1
     fi
   fi
-  local log="/tmp/ddhgs-$who-apt.log"
+  local log="/tmp/ddhgs-$who-apt.log" began=$SECONDS
   if ! { $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null &&
          $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
            --no-install-recommends "${missing[@]}" >"$log" 2>&1; }; then
@@ -27,4 +27,5 @@ ensure_packages() {
     tail -5 "$log" >&2 || true
     exit 1
   fi
+  echo "$who: installed ${#missing[@]} package(s) in $((SECONDS - began)) s" >&2
 }
