@@ -11,12 +11,17 @@
 // symmetric) of per-window coefficient maps.
 //
 // Layout: a work item is one strip of image rows and one block of kB bands.
-// Its input rows go, band block padded with zeros, into a ring of 11 rows;
+// Its input rows go, band block padded with zeros, into a ring of 12 rows;
 // each valid-window row is a vertical pass over the ring (five moments at
 // once) followed by a horizontal pass; its coefficients go to a second ring
-// from which each gradient row is gathered the same way. The rings take
-// about 2 MB at 640 columns, and the inner loops run over vectors of kB
-// bands. (Tiles of 128 columns, whose rings fit L2, measured no faster.)
+// from which each gradient row is gathered the same way. Rows go in pairs
+// where they can: one vertical pass over 12 ring rows serves two output rows
+// (the ring loads are what the kernel waits on), each output summing its
+// taps in the same order as alone (the compiler may fuse multiply-adds
+// differently, so the last bits can differ from unpaired rows; the pairing
+// depends on the image's shape only, never on the thread count). The
+// rings take about 2 MB at 640 columns, and the inner loops run over vectors
+// of kB bands. (Tiles of 128 columns, whose rings fit L2, measured no faster.)
 #include "model/ssim_kernel.h"
 
 #include <algorithm>
@@ -31,8 +36,9 @@ namespace ddhgs::model::ssim_kernel {
 namespace {
 
 constexpr int kR = kSsimWindow;
-constexpr int kMoments = 5;  // x, y, x^2, y^2, x y
-constexpr int kCoeffs = 3;   // dS/dmu_x, dS/ds_xx, dS/ds_xy
+constexpr int kRing = kR + 1;  // ring rows: a pair of output rows needs 12
+constexpr int kMoments = 5;    // x, y, x^2, y^2, x y
+constexpr int kCoeffs = 3;     // dS/dmu_x, dS/ds_xx, dS/ds_xy
 constexpr float kC1 = 0.01f * 0.01f, kC2 = 0.03f * 0.03f;
 // Moments are taken about the middle of the [0, 1] data range: the rounding
 // error of E[x^2] - E[x]^2 scales with (x - kShift)^2 instead of x^2, which
@@ -80,10 +86,10 @@ inline void store(float* p, const V& v) {
 // Ring and row buffers of one thread, in vectors of kB bands.
 template <typename V>
 struct Scratch {
-  std::vector<V> in;     // [kR][W][2] x, y (about kShift), ring by row % kR
-  std::vector<V> v;      // [W][kMoments] vertical moment sums of one window row
-  std::vector<V> coeff;  // [kR][Wv][kCoeffs] coefficient rows, ring by row % kR
-  std::vector<V> u;      // [Wv][kCoeffs] vertical coefficient sums of a gradient row
+  std::vector<V> in;     // [kRing][W][2] x, y (about kShift), ring by row % kRing
+  std::vector<V> v;      // [2][W][kMoments] vertical moment sums of two window rows
+  std::vector<V> coeff;  // [kRing][Wv][kCoeffs] coefficient rows, ring by row % kRing
+  std::vector<V> u;      // [2][Wv][kCoeffs] vertical coefficient sums of two gradient rows
 
   static Scratch& get() {
     thread_local Scratch s;
@@ -111,8 +117,8 @@ struct Item {
   Scratch<V>& s;
   V lanes;  // 1 in the block's bands, 0 in the padding lanes
 
-  V* in_row(int64_t r) const { return s.in.data() + (r % kR) * im.width * 2; }
-  V* coeff_row(int64_t i) const { return s.coeff.data() + (i % kR) * wv * kCoeffs; }
+  V* in_row(int64_t r) const { return s.in.data() + (r % kRing) * im.width * 2; }
+  V* coeff_row(int64_t i) const { return s.coeff.data() + (i % kRing) * wv * kCoeffs; }
 
   // Copies row r's band block into the ring, about kShift (padding lanes
   // hold 0); returns sum |x - y| over it, from the unshifted values.
@@ -139,23 +145,46 @@ struct Item {
     return sum;
   }
 
-  // Moments of window row i: vertical sums into v, then horizontal sums and
-  // SSIM per window; coefficients into the ring when grad is wanted.
-  // Returns the sum of SSIM over the row's windows and the block's bands.
-  double window_row(int64_t i) const {
+  // Adds tap k of ring row x, y to moments m.
+  static inline void add_tap(V* m, float wk, const V& x, const V& y) {
+    const V wx = wk * x, wy = wk * y;
+    m[0] += wx, m[1] += wy, m[2] += wx * x, m[3] += wy * y, m[4] += wx * y;
+  }
+
+  // Vertical moment sums of window row i into v.
+  void vertical_moments(int64_t i, V* v) const {
     const V* rows[kR];
     for (int k = 0; k < kR; ++k) rows[k] = in_row(i + k);
-    V* v = s.v.data();
     for (int64_t j = 0; j < im.width; ++j) {
-      V m0 = {}, m1 = {}, m2 = {}, m3 = {}, m4 = {};
-      for (int k = 0; k < kR; ++k) {
-        const V x = rows[k][2 * j], y = rows[k][2 * j + 1];
-        const V wx = win.w[k] * x, wy = win.w[k] * y;
-        m0 += wx, m1 += wy, m2 += wx * x, m3 += wy * y, m4 += wx * y;
-      }
-      V* vj = v + j * kMoments;
-      vj[0] = m0, vj[1] = m1, vj[2] = m2, vj[3] = m3, vj[4] = m4;
+      V m[kMoments] = {};
+      for (int k = 0; k < kR; ++k) add_tap(m, win.w[k], rows[k][2 * j], rows[k][2 * j + 1]);
+      std::memcpy(v + j * kMoments, m, sizeof m);
     }
+  }
+
+  // The same for window rows i and i + 1 in one pass over ring rows
+  // i..i+11: each ring row is loaded once for both.
+  void vertical_moments2(int64_t i, V* v0, V* v1) const {
+    const V* rows[kRing];
+    for (int k = 0; k < kRing; ++k) rows[k] = in_row(i + k);
+    for (int64_t j = 0; j < im.width; ++j) {
+      V a[kMoments] = {}, b[kMoments] = {};
+      add_tap(a, win.w[0], rows[0][2 * j], rows[0][2 * j + 1]);
+      for (int k = 1; k < kR; ++k) {
+        const V x = rows[k][2 * j], y = rows[k][2 * j + 1];
+        add_tap(a, win.w[k], x, y);
+        add_tap(b, win.w[k - 1], x, y);
+      }
+      add_tap(b, win.w[kR - 1], rows[kR][2 * j], rows[kR][2 * j + 1]);
+      std::memcpy(v0 + j * kMoments, a, sizeof a);
+      std::memcpy(v1 + j * kMoments, b, sizeof b);
+    }
+  }
+
+  // Window row i from its vertical sums v: horizontal sums and SSIM per
+  // window; coefficients into the ring when grad is wanted. Returns the sum
+  // of SSIM over the row's windows and the block's bands.
+  double window_row(int64_t i, const V* v) const {
     V* co = grad ? coeff_row(i) : nullptr;
     V row_sum = {};
     for (int64_t j = 0; j < wv; ++j) {
@@ -189,21 +218,44 @@ struct Item {
     return sum;
   }
 
-  // Gradient row r from the coefficient rows r-10..r (those that exist); x
-  // and y are the ring's values about kShift, the variables of s_xx and s_xy.
-  void gradient_row(int64_t r) const {
+  // Vertical sums for gradient row r of the coefficient rows r-10..r (those
+  // that exist) into u.
+  void vertical_coeffs(int64_t r, V* u) const {
     const int64_t ilo = std::max<int64_t>(0, r - (kR - 1)), ihi = std::min(hv - 1, r);
     const V* rows[kR];
     float weights[kR];
     int taps = 0;
     for (int64_t i = ilo; i <= ihi; ++i, ++taps)
       rows[taps] = coeff_row(i), weights[taps] = win.w[r - i];
-    V* u = s.u.data();
     for (int64_t j = 0; j < wv * kCoeffs; ++j) {
       V sum = {};
       for (int k = 0; k < taps; ++k) sum += weights[k] * rows[k][j];
       u[j] = sum;
     }
+  }
+
+  // The same for rows r and r + 1 where both have all 11 coefficient rows
+  // (10 <= r, r + 1 < hv): one pass over rows r-10..r+1, summed in the same
+  // order as vertical_coeffs.
+  void vertical_coeffs2(int64_t r, V* u0, V* u1) const {
+    const V* rows[kRing];
+    for (int k = 0; k < kRing; ++k) rows[k] = coeff_row(r - (kR - 1) + k);
+    for (int64_t j = 0; j < wv * kCoeffs; ++j) {
+      V a = {}, b = {};
+      a += win.w[kR - 1] * rows[0][j];
+      for (int k = 1; k < kR; ++k) {
+        const V c = rows[k][j];
+        a += win.w[kR - 1 - k] * c;
+        b += win.w[kR - k] * c;
+      }
+      b += win.w[0] * rows[kR][j];
+      u0[j] = a, u1[j] = b;
+    }
+  }
+
+  // Gradient row r from its vertical sums u; x and y are the ring's values
+  // about kShift, the variables of s_xx and s_xy.
+  void gradient_row(int64_t r, const V* u) const {
     const V* xy = in_row(r);
     float* out = grad + r * im.width * im.bands + c0;
     for (int64_t col = 0; col < im.width; ++col) {
@@ -238,16 +290,47 @@ struct Item {
         if (loaded >= r0 && loaded < r1) sums.l1 += l1;
       }
     };
-    for (int64_t i = first; i < last; ++i) {
-      load_through(i + kR - 1);
-      const double row_ssim = window_row(i);
-      if (i < r0) continue;  // halo row: owned by the strip above
-      sums.ssim += row_ssim;
-      if (grad) gradient_row(i);
+    V* v0 = s.v.data();
+    V* v1 = v0 + im.width * kMoments;
+    V* u0 = s.u.data();
+    V* u1 = u0 + wv * kCoeffs;
+    // Gradient rows r (and r + 1 when pair), once their coefficient rows exist.
+    auto gradients = [&](int64_t r, bool pair) {
+      if (pair && r >= kR - 1 && r + 1 < hv) {
+        vertical_coeffs2(r, u0, u1);
+        gradient_row(r, u0);
+        gradient_row(r + 1, u1);
+        return;
+      }
+      for (int64_t q = r; q <= r + int64_t(pair); ++q) {
+        vertical_coeffs(q, u0);
+        gradient_row(q, u0);
+      }
+    };
+    for (int64_t i = first; i < last;) {
+      if (i + 1 < last) {
+        load_through(i + kR);
+        vertical_moments2(i, v0, v1);
+        const double ssim0 = window_row(i, v0), ssim1 = window_row(i + 1, v1);
+        // Halo rows (above r0) belong to the strip above.
+        if (i >= r0) sums.ssim += ssim0;
+        if (i + 1 >= r0) sums.ssim += ssim1;
+        if (grad && i + 1 >= r0) gradients(i >= r0 ? i : i + 1, i >= r0);
+        i += 2;
+      } else {
+        load_through(i + kR - 1);
+        vertical_moments(i, v0);
+        const double row_ssim = window_row(i, v0);
+        if (i >= r0) {
+          sums.ssim += row_ssim;
+          if (grad) gradients(i, false);
+        }
+        i += 1;
+      }
     }
     load_through(r1 - 1);
     if (grad)
-      for (int64_t r = std::max(r0, last); r < r1; ++r) gradient_row(r);
+      for (int64_t r = std::max(r0, last); r < r1; ++r) gradients(r, false);
     return sums;
   }
 };
@@ -266,11 +349,11 @@ Sums run_blocks(const Images& im, float* grad) {
   std::vector<Sums> partial(static_cast<size_t>(items));
   core::parallel_for(0, items, 1, [&](int64_t begin, int64_t end) {
     Scratch<V>& s = Scratch<V>::get();
-    s.in.resize(size_t(kR * im.width * 2));
-    s.v.resize(size_t(im.width * kMoments));
+    s.in.resize(size_t(kRing * im.width * 2));
+    s.v.resize(size_t(2 * im.width * kMoments));
     if (grad) {
-      s.coeff.resize(size_t(kR * wv * kCoeffs));
-      s.u.resize(size_t(wv * kCoeffs));
+      s.coeff.resize(size_t(kRing * wv * kCoeffs));
+      s.u.resize(size_t(2 * wv * kCoeffs));
     }
     for (int64_t item = begin; item < end; ++item) {
       const int64_t strip = item / blocks, block = item % blocks;
