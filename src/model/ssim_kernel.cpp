@@ -292,8 +292,8 @@ struct Item {
     };
     V* v0 = s.v.data();
     V* v1 = v0 + im.width * kMoments;
-    V* u0 = s.u.data();
-    V* u1 = u0 + wv * kCoeffs;
+    V* u0 = grad ? s.u.data() : nullptr;  // s.u is sized only when grad is wanted
+    V* u1 = grad ? u0 + wv * kCoeffs : nullptr;
     // Gradient rows r (and r + 1 when pair), once their coefficient rows exist.
     auto gradients = [&](int64_t r, bool pair) {
       if (pair && r >= kR - 1 && r + 1 < hv) {
