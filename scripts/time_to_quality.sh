@@ -3,8 +3,8 @@
 # 112 views (101 training, 11 held out) trained for several iteration counts,
 # one run after the other. Prints, per run, the wall clock, the training time
 # and the held-out views' PSNR against clean truth, its gap to the longest
-# finished run with the default settings, and the test-PSNR-against-time
-# curve.
+# finished run with the default settings, and the test-PSNR curve against
+# training minutes and against wall minutes (the issue's clock).
 #
 #   scripts/time_to_quality.sh [DIR] [RUNS (default "6000 12000 30000")]
 #
@@ -37,7 +37,18 @@ for spec in $runs; do
     IFS=: read -ra pairs <<< "$settings"
     for pair in "${pairs[@]}"; do args+=(--set "$pair"); done
     start=$(date +%s)
-    "$B" train scene --out "$run" --iterations "$n" "${args[@]}" --force > "$run.log" 2>&1
+    # Every 5 s: wall seconds and the test records written so far, so each
+    # record's wall clock (loading, initialising and earlier records
+    # included) is known to 5 s.
+    (while sleep 5; do
+      echo "$(($(date +%s) - start)) $(grep -c test_psnr_clean "$run/metrics.jsonl" 2> /dev/null)"
+    done) > "$run.records" &
+    sampler=$!
+    status=0
+    "$B" train scene --out "$run" --iterations "$n" "${args[@]}" --force > "$run.log" 2>&1 ||
+      status=$?
+    kill $sampler
+    [ $status = 0 ] || exit $status
     echo $(($(date +%s) - start)) > "$run.wall"
   fi
 done
@@ -57,15 +68,23 @@ for spec in specs:
              for r in map(json.loads, open(os.path.join(path, "metrics.jsonl")))
              if "test_psnr_clean" in r]
     wall = os.path.join(root, f"{name}.wall")
+    # Wall minutes at which the k-th test record had been written (5 s samples).
+    records = os.path.join(root, f"{name}.records")
+    wall_curve = []
+    if os.path.exists(records) and os.path.exists(wall):
+        samples = [tuple(map(int, line.split())) for line in open(records) if len(line.split()) == 2]
+        for k, (_, psnr) in enumerate(curve, 1):
+            at = next((s for s, count in samples if count >= k), None)
+            wall_curve.append((at / 60 if at is not None else int(open(wall).read()) / 60, psnr))
     runs.append((int(n), settings, name, summary, curve,
-                 int(open(wall).read()) / 60 if os.path.exists(wall) else None))
+                 int(open(wall).read()) / 60 if os.path.exists(wall) else None, wall_curve))
 defaults = [r for r in runs if not r[1]]
 if not defaults:
     sys.exit("no finished run with the default settings")
 reference = max(defaults, key=lambda r: r[0])
 best = reference[3]["test_psnr_clean"]
 print(f"longest finished default run: {reference[0]} iterations, {best:.3f} dB clean test PSNR")
-for n, settings, name, summary, curve, wall in runs:
+for n, settings, name, summary, curve, wall, wall_curve in runs:
     psnr = summary["test_psnr_clean"]
     wall_text = f"{wall:5.1f} min wall" if wall is not None else "wall not recorded"
     print(f"{name}  {wall_text}  {summary['seconds'] / 60:5.1f} min training"
@@ -73,4 +92,7 @@ for n, settings, name, summary, curve, wall in runs:
           f"  peak RSS {summary['peak_rss_mib'] / 1024:.1f} GiB")
     print("        curve (training minutes: dB): "
           + ", ".join(f"{m:.1f}: {p:.2f}" for m, p in curve))
+    if wall_curve:
+        print("        curve (wall minutes: dB):     "
+              + ", ".join(f"{m:.1f}: {p:.2f}" for m, p in wall_curve))
 PY
