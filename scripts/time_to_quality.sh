@@ -40,7 +40,8 @@ for spec in $runs; do
     # Every 5 s: wall seconds and the test records written so far, so each
     # record's wall clock (loading, initialising and earlier records
     # included) is known to 5 s.
-    (while sleep 5; do
+    # It stops with this script, however that ends.
+    (while sleep 5 && kill -0 $$ 2> /dev/null; do
       echo "$(($(date +%s) - start)) $(grep -c test_psnr_clean "$run/metrics.jsonl" 2> /dev/null)"
     done) > "$run.records" &
     sampler=$!
@@ -68,16 +69,17 @@ for spec in specs:
              for r in map(json.loads, open(os.path.join(path, "metrics.jsonl")))
              if "test_psnr_clean" in r]
     wall = os.path.join(root, f"{name}.wall")
+    wall_minutes = int(open(wall).read()) / 60 if os.path.exists(wall) else None
     # Wall minutes at which the k-th test record had been written (5 s samples).
     records = os.path.join(root, f"{name}.records")
     wall_curve = []
-    if os.path.exists(records) and os.path.exists(wall):
-        samples = [tuple(map(int, line.split())) for line in open(records) if len(line.split()) == 2]
+    if os.path.exists(records) and wall_minutes is not None:
+        samples = [tuple(map(int, fields)) for fields in map(str.split, open(records))
+                   if len(fields) == 2]
         for k, (_, psnr) in enumerate(curve, 1):
-            at = next((s for s, count in samples if count >= k), None)
-            wall_curve.append((at / 60 if at is not None else int(open(wall).read()) / 60, psnr))
-    runs.append((int(n), settings, name, summary, curve,
-                 int(open(wall).read()) / 60 if os.path.exists(wall) else None, wall_curve))
+            at = next((s / 60 for s, count in samples if count >= k), wall_minutes)
+            wall_curve.append((at, psnr))
+    runs.append((int(n), settings, name, summary, curve, wall_minutes, wall_curve))
 defaults = [r for r in runs if not r[1]]
 if not defaults:
     sys.exit("no finished run with the default settings")
