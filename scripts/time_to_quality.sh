@@ -12,11 +12,13 @@
 # each after a colon: "11000:loss.bands_per_step_until_fraction=0.9" trains
 # 11,000 iterations with that setting, in run_11000_loss.bands_per_...=0.9.
 # Writes into DIR (default a new folder under /tmp; the scene takes 20 GB).
-# Finished runs are reused (so a DIR holds one version's defaults: after a
-# default changes, use a new DIR, with a link to the old DIR's scene); an
-# interrupted one continues from its last checkpoint (every 1000 iterations
-# here; checkpoints do not change training), and its wall clock is then not
-# reported. About 42 min for 6000 iterations, 80 min for 12000 on 2 cores.
+# Finished runs are reused and an interrupted one continues from its last
+# checkpoint (every 1000 iterations here; checkpoints do not change
+# training; its wall clock is then not reported), but only by the same
+# version: each run records a digest of the ddhgs binary and configs/*.json
+# in run_N.version, and the script stops if they differ (after a default
+# changes, use a new DIR with a link to the old DIR's scene).
+# About 42 min for 6000 iterations, 80 min for 12000 on 2 cores.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 B="$here/build/ddhgs"
@@ -24,20 +26,36 @@ dir=${1:-$(mktemp -d /tmp/ddhgs_time_to_quality_XXXXXX)}
 runs=${2:-"6000 12000 30000"}
 mkdir -p "$dir"
 cd "$dir"
+version=$(cat "$B" "$here"/configs/*.json | sha256sum | cut -c1-16)
+# Reusing or resuming a run made by another binary or other configs would mix
+# two versions' figures in one table.
+same_version() {
+  local made
+  made=$(cat "$1.version" 2> /dev/null || echo "unrecorded")
+  [ "$made" = "$version" ] && return 0
+  echo "time_to_quality: $dir/$1 was made by version $made, this is $version" \
+    "(binary and configs/*.json); use a new DIR" >&2
+  exit 2
+}
 [ -f scene/transforms.json ] || "$B" synth --preset bayspec --out scene --views 112 --force \
   > synth.log 2>&1
 for spec in $runs; do
   IFS=: read -r n settings <<< "$spec"
   run=run_$n${settings:+_${settings//:/_}}
-  [ -f "$run/train_summary.json" ] && continue
+  if [ -f "$run/train_summary.json" ]; then
+    same_version "$run"
+    continue
+  fi
   echo "$run: start $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)" >&2
   if [ -f "$run/checkpoint.pt" ]; then
+    same_version "$run"
     rm -f "$run.wall"
     "$B" train --resume "$run" >> "$run.log" 2>&1
   else
     args=(--set output.checkpoint_every=1000)
     IFS=: read -ra pairs <<< "$settings"
     for pair in "${pairs[@]}"; do args+=(--set "$pair"); done
+    echo "$version" > "$run.version"
     start=$(date +%s)
     # Every 5 s: wall seconds and the test records written so far, so each
     # record's wall clock (loading, initialising and earlier records

@@ -11,10 +11,12 @@
 namespace ddhgs::model {
 
 struct DensifyOptions {
-  double grad_threshold = 2e-4;     // mean |dL/d(means2d)| in NDC units
-  double percent_dense = 0.01;      // clone/split boundary, fraction of scene extent
-  double min_opacity = 0.005;       // prune below
-  double max_screen_px = 20;        // prune larger screen radii (when prune_large)
+  double grad_threshold = 2e-4;  // mean |dL/d(means2d)| in NDC units
+  double percent_dense = 0.01;   // clone/split boundary, fraction of scene extent
+  double min_opacity = 0.005;    // prune below
+  // Prune larger screen radii (when prune_large); 0: off, as in
+  // configs/default.json (3DGS's reference code never applied it).
+  double max_screen_px = 0;
   double max_world_fraction = 0.1;  // prune larger world scales (when prune_large)
   int64_t max_gaussians = 0;        // 0: no cap
 };
