@@ -8,7 +8,8 @@
 //            --ranks R[,R...] (model.spectral_rank, default 0: per band; each
 //            rank trains on the same scene, one after the other),
 //            --bands-per-step S[,S...] (loss.bands_per_step, default 0: all;
-//            each value with each rank)
+//            each value with each rank), --view-fraction F (loss.view_fraction,
+//            default 1: whole views; the rest of a run's schedule as default.json)
 //
 // Per case it writes a synthetic scene (`ddhgs synth --preset bayspec` with
 // the case's size and band count, supersample 1) to a temporary folder,
@@ -64,6 +65,7 @@ struct Options {
   int downscale = 1;
   std::vector<int> ranks = {0};
   std::vector<int> bands_per_step = {0};
+  double view_fraction = 1;
 };
 
 struct Usage {
@@ -100,6 +102,7 @@ nlohmann::json train_config(const fs::path& scene, const Options& o, int64_t gau
   nlohmann::json config = train::load_preset("default");
   config["model"]["spectral_rank"] = rank;
   config["loss"]["bands_per_step"] = bands_per_step;
+  config["loss"]["view_fraction"] = o.view_fraction;
   config["data"]["path"] = fs::absolute(scene).string();
   config["data"]["downscale"] = o.downscale;
   config["init"]["random"] = true;
@@ -160,12 +163,12 @@ void run_rank(const Case& c, const Options& o, const fs::path& scene, const fs::
   const double cpu = d.user + d.system;
   const model::Gaussians& g = trainer->state().gaussians;
   std::printf(
-      "%dx%d, %lld bands, %s, loss on %s bands, %lld Gaussians, threads %d, %d iterations "
-      "(after %d warm-up), scene %.0f s\n",
+      "%dx%d, %lld bands, %s, loss on %s bands and %g of the pixels, %lld Gaussians, threads %d, "
+      "%d iterations (after %d warm-up), scene %.0f s\n",
       in.width, in.height, (long long)trainer->scene().bands(),
       g.colour.latent() ? ("rank " + std::to_string(g.colour.rank())).c_str() : "per band",
-      bands_per_step > 0 ? std::to_string(bands_per_step).c_str() : "all", (long long)g.size(),
-      core::thread_count(), k, o.warmup, synth_s);
+      bands_per_step > 0 ? std::to_string(bands_per_step).c_str() : "all", o.view_fraction,
+      (long long)g.size(), core::thread_count(), k, o.warmup, synth_s);
   std::printf(
       "  per iteration: wall %.3f s, CPU %.3f s (user %.3f + system %.3f, system %.1f %%), "
       "minor faults %lld; peak RSS %.0f MiB\n",
@@ -239,6 +242,9 @@ Options parse(int argc, char** argv) {
       o.ranks = list(i, "--ranks needs a list");
     } else if (!std::strcmp(argv[i], "--bands-per-step")) {
       o.bands_per_step = list(i, "--bands-per-step needs a list");
+    } else if (!std::strcmp(argv[i], "--view-fraction")) {
+      if (i + 1 >= argc) usage_error("--view-fraction needs a value");
+      o.view_fraction = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--scene")) {
       if (i + 1 >= argc) usage_error("--scene needs a folder");
       o.scene = argv[++i];
@@ -248,6 +254,8 @@ Options parse(int argc, char** argv) {
   }
   if (o.iterations < 1 || o.views < 1 || o.downscale < 1)
     usage_error("--iterations, --views and --downscale must be positive");
+  if (!(o.view_fraction > 0 && o.view_fraction <= 1))
+    usage_error("--view-fraction must be in (0, 1]");
   return o;
 }
 

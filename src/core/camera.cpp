@@ -22,7 +22,8 @@ Intrinsics Intrinsics::downscaled(int factor) const {
 bool Intrinsics::operator==(const Intrinsics& o) const {
   return fx == o.fx && fy == o.fy && cx == o.cx && cy == o.cy && width == o.width &&
          height == o.height && fisheye == o.fisheye && k1 == o.k1 && k2 == o.k2 && k3 == o.k3 &&
-         k4 == o.k4 && p1 == o.p1 && p2 == o.p2;
+         k4 == o.k4 && p1 == o.p1 && p2 == o.p2 && frame_x == o.frame_x && frame_y == o.frame_y &&
+         frame_width == o.frame_width && frame_height == o.frame_height;
 }
 
 Vec3 Camera::forward() const {

@@ -23,11 +23,17 @@ struct Intrinsics {
   // RADIAL_FISHEYE). All zero and not fisheye: a pinhole camera.
   bool fisheye = false;
   double k1 = 0, k2 = 0, k3 = 0, k4 = 0, p1 = 0, p2 = 0;
+  // A camera that sees part of a larger view (a training crop,
+  // train/view_crop.h): the part's corner in the view (pixels) and the
+  // view's size; frame_width 0: the image is the whole view. The
+  // rasterizer's Jacobian clamp follows the whole view's field of view, so
+  // the part renders what the whole view renders there.
+  int frame_x = 0, frame_y = 0, frame_width = 0, frame_height = 0;
 
   bool has_distortion() const {
     return fisheye || k1 != 0 || k2 != 0 || k3 != 0 || k4 != 0 || p1 != 0 || p2 != 0;
   }
-  // Same focal lengths, principal point, size and lens.
+  // Same focal lengths, principal point, size, lens and frame.
   bool operator==(const Intrinsics& o) const;
   // Intrinsics of the same camera at 1/factor resolution (area-averaged images).
   Intrinsics downscaled(int factor) const;

@@ -151,10 +151,16 @@ void mean_and_cov2(const float* m, const float* ls, const float* qr, const Rende
 
 std::array<double, 4> jacobian_clamp_limits(const RenderCamera& cam) {
   // 3DGS clamps at 1.3 tan(fov/2); gsplat's form keeps that for a centred
-  // principal point and stays sensible for an off-centre one.
-  const double tan_x = 0.5 * cam.width / cam.fx, tan_y = 0.5 * cam.height / cam.fy;
-  return {cam.cx / cam.fx + 0.3 * tan_x, (cam.width - cam.cx) / cam.fx + 0.3 * tan_x,
-          cam.cy / cam.fy + 0.3 * tan_y, (cam.height - cam.cy) / cam.fy + 0.3 * tan_y};
+  // principal point and stays sensible for an off-centre one. A part of a
+  // view clamps where the whole view does.
+  const bool part = cam.frame_width > 0;
+  const double width = part ? cam.frame_width : cam.width;
+  const double height = part ? cam.frame_height : cam.height;
+  const double cx = double(cam.cx) + (part ? cam.frame_x : 0);
+  const double cy = double(cam.cy) + (part ? cam.frame_y : 0);
+  const double tan_x = 0.5 * width / cam.fx, tan_y = 0.5 * height / cam.fy;
+  return {cx / cam.fx + 0.3 * tan_x, (width - cx) / cam.fx + 0.3 * tan_x, cy / cam.fy + 0.3 * tan_y,
+          (height - cy) / cam.fy + 0.3 * tan_y};
 }
 
 Projected project_forward(const torch::Tensor& means, const torch::Tensor& log_scales,

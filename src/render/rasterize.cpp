@@ -164,6 +164,8 @@ RenderCamera RenderCamera::from(const core::Camera& camera) {
   RenderCamera c;
   c.fx = float(in.fx), c.fy = float(in.fy), c.cx = float(in.cx), c.cy = float(in.cy);
   c.width = in.width, c.height = in.height;
+  c.frame_x = in.frame_x, c.frame_y = in.frame_y;
+  c.frame_width = in.frame_width, c.frame_height = in.frame_height;
   for (int i = 0; i < 16; ++i) c.world_to_camera[i] = float(camera.world_to_camera.m[i]);
   return c;
 }

@@ -18,6 +18,9 @@ struct RenderCamera {
   int width = 0, height = 0;
   float world_to_camera[16];  // row-major, OpenCV axes
   float near_plane = 0.01f;   // scene units
+  // core::Intrinsics' frame: the whole view this image is a part of
+  // (frame_width 0: the image itself), for the Jacobian clamp.
+  int frame_x = 0, frame_y = 0, frame_width = 0, frame_height = 0;
   static RenderCamera from(const core::Camera& camera);
 };
 

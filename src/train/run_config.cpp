@@ -92,6 +92,8 @@ LossConfig parse_loss(const json& l, const std::string& source) {
   c.bands_per_step = read<int>(l, "loss", "bands_per_step", source);
   c.bands_per_step_until_fraction =
       read<double>(l, "loss", "bands_per_step_until_fraction", source);
+  c.view_fraction = read<double>(l, "loss", "view_fraction", source);
+  c.view_fraction_until_fraction = read<double>(l, "loss", "view_fraction_until_fraction", source);
   return c;
 }
 

@@ -67,6 +67,13 @@ struct LossConfig {
   // ... for this fraction of the Gaussian iterations (the first ones); every
   // band after.
   double bands_per_step_until_fraction = 1;
+  // The Gaussian iterations measure every term on a random crop of their
+  // view holding this fraction of its pixels on average (train/view_crop.h);
+  // 1: the whole view.
+  double view_fraction = 1;
+  // ... for this fraction of the Gaussian iterations (the first ones); the
+  // whole view after.
+  double view_fraction_until_fraction = 1;
   SpectralLossOptions spectral_options;  // spectral_alpha, spectral_beta, spectral_temperature
   // loss.diffusion is DiffusionTermOptions::weight (RunConfig::diffusion).
 };

@@ -31,6 +31,7 @@ Schedule schedule_of(const RunConfig& config) {
   s.densify_every = densify.every;
   s.opacity_reset_every = interval(densify.opacity_reset_every_fraction, s.iterations);
   s.bands_drawn_until = of_run(config.loss.bands_per_step_until_fraction, s.iterations);
+  s.views_cropped_until = of_run(config.loss.view_fraction_until_fraction, s.iterations);
   return s;
 }
 

@@ -21,9 +21,12 @@ struct Schedule {
   int64_t opacity_reset_every = 0;  // 0: never
   // loss.bands_per_step draws bands up to and including this iteration.
   int64_t bands_drawn_until = 0;
+  // loss.view_fraction crops the views up to and including this iteration.
+  int64_t views_cropped_until = 0;
 
   bool densifies(int64_t iteration) const { return iteration < densify_until; }
   bool draws_bands(int64_t iteration) const { return iteration <= bands_drawn_until; }
+  bool crops_views(int64_t iteration) const { return iteration <= views_cropped_until; }
 };
 
 struct RunConfig;

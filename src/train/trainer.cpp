@@ -73,6 +73,8 @@ constexpr uint64_t kDenoiserInitStream = uint64_t(1) << 41;
 constexpr uint64_t kFoldStream = uint64_t(1) << 42;
 // kBandStream + i: the bands iteration i measures (loss.bands_per_step).
 constexpr uint64_t kBandStream = uint64_t(1) << 43;
+// kCropStream + i: the part of its view iteration i measures (loss.view_fraction).
+constexpr uint64_t kCropStream = uint64_t(1) << 44;
 
 // The trained modules with one row per band (Adam groups "<module>/<name>").
 constexpr const char* kColourModule = "colour_model";
@@ -223,8 +225,10 @@ void Trainer::set_learning_rates(int64_t iteration) {
 
 render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor& sink,
                                                    const render::ShRestSink& rest_step,
-                                                   const torch::Tensor& band_map) {
-  const core::Camera& camera = scene_->views[view].camera;
+                                                   const torch::Tensor& band_map,
+                                                   const ViewCrop* crop) {
+  const core::Camera camera =
+      crop ? crop_camera(scene_->views[view].camera, *crop) : scene_->views[view].camera;
   model::Gaussians g = state_.gaussians;  // handles to the same tensors
   if (band_map.defined()) g.colour = g.colour.mapped(band_map);
   if (camera_refinement_)
@@ -337,6 +341,17 @@ torch::Tensor Trainer::step_bands(int64_t iteration, int view) const {
   return draw_bands(bands, count, mix_seed(config_.seed, kBandStream + uint64_t(iteration)));
 }
 
+std::optional<ViewCrop> Trainer::step_crop(int64_t iteration, int width, int height) const {
+  const double fraction = config_.loss.view_fraction;
+  // The joint diffusion term draws its own crops of the whole render.
+  const bool joint = diffusion_ && diffusion_->options().joint;
+  if (fraction >= 1 || !schedule_.crops_views(iteration) || joint) return std::nullopt;
+  const ViewCrop crop = draw_view_crop(width, height, fraction,
+                                       mix_seed(config_.seed, kCropStream + uint64_t(iteration)));
+  if (crop.width() == width && crop.height() == height) return std::nullopt;
+  return crop;
+}
+
 json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   core::StageScope step_scope("step (other)");
   // The denoiser's convolutions are large enough for LibTorch's own threads.
@@ -351,10 +366,14 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   const int view = pseudo ? -1 : view_for(iteration);
   const core::Camera& camera = pseudo ? pseudo->camera : scene_->views[view].camera;
   const torch::Tensor bands = pseudo ? torch::Tensor() : step_bands(iteration, view);
+  const std::optional<ViewCrop> crop =
+      pseudo ? std::nullopt
+             : step_crop(iteration, camera.intrinsics.width, camera.intrinsics.height);
   torch::Tensor target;
   {
     core::StageScope stage("view (to float)");
     target = pseudo ? pseudo->target : scene_->image(view);
+    if (crop) target = crop_image(target, *crop);
     if (bands.defined()) target = select_bands(target, bands);
   }
   auto sink = torch::zeros({g.size(), 2}).requires_grad_(true);
@@ -366,7 +385,8 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     render::ShRestSink rest_step;
     if (g.sh_rest.numel() > 0) rest_step = state_.adam.row_step("sh_rest");
     out = pseudo ? model::render_gaussians(g, camera, background_, band_offsets(), sink, rest_step)
-                 : render_training_view(view, sink, rest_step, band_map(bands));
+                 : render_training_view(view, sink, rest_step, band_map(bands),
+                                        crop ? &*crop : nullptr);
   }
   // A view of a band-per-view scene supervises only the bands it holds.
   const torch::Tensor rendered = pseudo ? out.image : scene_->view_slice(view, out.image);
@@ -382,6 +402,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
                            {rendered, target, view, iteration,
                             mix_seed(config_.seed, kTermStream + uint64_t(iteration))});
     if (pseudo) loss.total = loss.total * diffusion_->options().distill_weight;
+    if (crop) loss.total = loss.total * crop->loss_scale;
   }
   {
     core::StageScope stage("backward (other)");
@@ -390,8 +411,8 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
 
   if (schedule_.densifies(iteration) && sink.grad().defined()) {
     core::StageScope stage("densify stats");
-    state_.stats.accumulate(out.radii, sink.grad(), camera.intrinsics.width,
-                            camera.intrinsics.height);
+    state_.stats.accumulate(out.radii, crop ? sink.grad() * crop->coverage : sink.grad(),
+                            camera.intrinsics.width, camera.intrinsics.height);
   }
   {
     core::StageScope stage("adam");

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "io/scene/scene.h"
@@ -26,6 +27,7 @@
 #include "train/run_folder.h"
 #include "train/schedule.h"
 #include "train/seed.h"
+#include "train/view_crop.h"
 
 namespace ddhgs::train {
 
@@ -84,10 +86,15 @@ class Trainer {
   int view_for(int64_t iteration) const;
   // A training view rendered with its camera correction, if any; sink as in
   // render::rasterize; rest_step receives the SH rest gradient in blocks;
-  // band_map ([M, N], may be undefined) picks the bands rendered.
+  // band_map ([M, N], may be undefined) picks the bands rendered; crop (may
+  // be null) renders only that part of the view.
   render::RenderOutput render_training_view(int view, const torch::Tensor& sink,
                                             const render::ShRestSink& rest_step = {},
-                                            const torch::Tensor& band_map = {});
+                                            const torch::Tensor& band_map = {},
+                                            const ViewCrop* crop = nullptr);
+  // The part of a width x height training view iteration measures
+  // (loss.view_fraction, train/view_crop.h), or nullopt for the whole view.
+  std::optional<ViewCrop> step_crop(int64_t iteration, int width, int height) const;
   // The bands iteration measures (loss.bands_per_step, train/band_draw.h) on
   // training view `view`, or undefined for all of them.
   torch::Tensor step_bands(int64_t iteration, int view) const;

@@ -258,6 +258,21 @@ TEST(TrainCli, LatentColourModelTrainsResumesAndItsPlyRendersAsTrained) {
   ASSERT_EQ(train("--resume " + sampled_split.string(), &out), 0) << out;
   EXPECT_EQ(io::read_file(sampled_split / "gaussians.ply"), sampled_ply);
 
+  // Measuring a random crop of half the pixels a step (drawn from seed and
+  // iteration) resumes bit for bit too.
+  const fs::path cropped = runs / "cropped", cropped_split = runs / "cropped_split";
+  ASSERT_EQ(train(scene().string() + " --out " + cropped.string() +
+                      " --iterations 120 --set loss.view_fraction=0.5" + args,
+                  &out),
+            0)
+      << out;
+  const std::string cropped_ply = io::read_file(cropped / "gaussians.ply");
+  EXPECT_NE(cropped_ply, ply);
+  EXPECT_GT(read_json(cropped / "train_summary.json")["test_psnr_clean"].get<double>(), 19.0);
+  copy_back_to(cropped, 100, cropped_split);
+  ASSERT_EQ(train("--resume " + cropped_split.string(), &out), 0) << out;
+  EXPECT_EQ(io::read_file(cropped_split / "gaussians.ply"), cropped_ply);
+
   // A rank above the band count is refused before anything is written.
   ASSERT_EQ(train(scene().string() + " --out " + (runs / "nine").string() +
                       " --set model.spectral_rank=9",
