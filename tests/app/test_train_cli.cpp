@@ -244,34 +244,37 @@ TEST(TrainCli, LatentColourModelTrainsResumesAndItsPlyRendersAsTrained) {
   EXPECT_NEAR(read_json(encoder / "eval" / "metrics.json")["psnr"].get<double>(),
               encoded["test_psnr"].get<double>(), 1e-4);
 
+  // A run of 120 iterations with `settings`, and a copy resumed from its
+  // checkpoint at 100 that must end with the same PLY, bit for bit.
+  const auto train_and_resume = [&](const std::string& name, const std::string& settings,
+                                    std::string* run_ply) {
+    const fs::path run = runs / name, split = runs / (name + "_split");
+    ASSERT_EQ(
+        train(scene().string() + " --out " + run.string() + " --iterations 120" + settings + args,
+              &out),
+        0)
+        << out;
+    *run_ply = io::read_file(run / "gaussians.ply");
+    copy_back_to(run, 100, split);
+    ASSERT_EQ(train("--resume " + split.string(), &out), 0) << out;
+    EXPECT_EQ(io::read_file(split / "gaussians.ply"), *run_ply);
+  };
+
   // Measuring 3 of the 8 bands a step (drawn from seed and iteration, the
   // drawn rows' Adam state in the checkpoint) resumes bit for bit too.
-  const fs::path sampled = runs / "sampled", sampled_split = runs / "sampled_split";
-  ASSERT_EQ(train(scene().string() + " --out " + sampled.string() +
-                      " --iterations 120 --set loss.bands_per_step=3" + args,
-                  &out),
-            0)
-      << out;
-  const std::string sampled_ply = io::read_file(sampled / "gaussians.ply");
+  std::string sampled_ply;
+  ASSERT_NO_FATAL_FAILURE(
+      train_and_resume("sampled", " --set loss.bands_per_step=3", &sampled_ply));
   EXPECT_NE(sampled_ply, ply);
-  copy_back_to(sampled, 100, sampled_split);
-  ASSERT_EQ(train("--resume " + sampled_split.string(), &out), 0) << out;
-  EXPECT_EQ(io::read_file(sampled_split / "gaussians.ply"), sampled_ply);
 
   // Measuring a random crop of half the pixels a step (drawn from seed and
   // iteration) resumes bit for bit too.
-  const fs::path cropped = runs / "cropped", cropped_split = runs / "cropped_split";
-  ASSERT_EQ(train(scene().string() + " --out " + cropped.string() +
-                      " --iterations 120 --set loss.view_fraction=0.5" + args,
-                  &out),
-            0)
-      << out;
-  const std::string cropped_ply = io::read_file(cropped / "gaussians.ply");
+  std::string cropped_ply;
+  ASSERT_NO_FATAL_FAILURE(
+      train_and_resume("cropped", " --set loss.view_fraction=0.5", &cropped_ply));
   EXPECT_NE(cropped_ply, ply);
-  EXPECT_GT(read_json(cropped / "train_summary.json")["test_psnr_clean"].get<double>(), 19.0);
-  copy_back_to(cropped, 100, cropped_split);
-  ASSERT_EQ(train("--resume " + cropped_split.string(), &out), 0) << out;
-  EXPECT_EQ(io::read_file(cropped_split / "gaussians.ply"), cropped_ply);
+  EXPECT_GT(read_json(runs / "cropped" / "train_summary.json")["test_psnr_clean"].get<double>(),
+            19.0);
 
   // A rank above the band count is refused before anything is written.
   ASSERT_EQ(train(scene().string() + " --out " + (runs / "nine").string() +
