@@ -1,7 +1,6 @@
 #include "train/band_draw.h"
 
 #include "core/error.h"
-#include "core/parallel.h"
 #include "train/seed.h"
 
 namespace ddhgs::train {
@@ -16,22 +15,6 @@ torch::Tensor draw_bands(int64_t bands, int64_t count, uint64_t seed) {
     out[j] = lo + int64_t(mix_seed(seed, uint64_t(j)) % uint64_t(hi - lo));
   }
   return index;
-}
-
-torch::Tensor select_bands(const torch::Tensor& image, const torch::Tensor& index) {
-  core::require(image.dim() == 3 && image.scalar_type() == torch::kFloat32,
-                "band draw: select_bands needs an [H, W, N] float32 image");
-  const torch::Tensor in = image.contiguous();
-  const int64_t pixels = in.size(0) * in.size(1), n = in.size(2), count = index.size(0);
-  torch::Tensor out = torch::empty({in.size(0), in.size(1), count}, in.options());
-  const float* src = in.data_ptr<float>();
-  float* dst = out.data_ptr<float>();
-  const int64_t* bands = index.data_ptr<int64_t>();
-  core::parallel_for(0, pixels, 4096, [&](int64_t begin, int64_t end) {
-    for (int64_t p = begin; p < end; ++p)
-      for (int64_t j = 0; j < count; ++j) dst[p * count + j] = src[p * n + bands[j]];
-  });
-  return out;
 }
 
 }  // namespace ddhgs::train

@@ -16,12 +16,7 @@ namespace ddhgs::train {
 // count)), uniform within it, drawn from seed alone (mix_seed(seed, j)).
 // count >= bands gives every band. int64 [count]. core::selection_map of
 // them is the map for model::ColourModel::mapped, with which the latent
-// decode computes only them.
+// decode computes only them; io::Scene::image(view, window) reads only them.
 torch::Tensor draw_bands(int64_t bands, int64_t count, uint64_t seed);
-
-// image [H, W, N] float32 (contiguous) at those bands, [H, W, count]: the
-// same values as index_select along the last dimension, in one pass over the
-// pixels (index_select walks the image once per band picked).
-torch::Tensor select_bands(const torch::Tensor& image, const torch::Tensor& index);
 
 }  // namespace ddhgs::train

@@ -372,9 +372,15 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   torch::Tensor target;
   {
     core::StageScope stage("view (to float)");
-    target = pseudo ? pseudo->target : scene_->image(view);
-    if (crop) target = crop_image(target, *crop);
-    if (bands.defined()) target = select_bands(target, bands);
+    if (pseudo) {
+      target = pseudo->target;  // every band, whole view
+    } else {
+      // Only the crop's samples of the drawn bands are converted to float.
+      io::ImageWindow window;
+      if (crop) window = {crop->x0, crop->y0, crop->x1, crop->y1, {}};
+      window.bands = bands;
+      target = scene_->image(view, window);
+    }
   }
   auto sink = torch::zeros({g.size(), 2}).requires_grad_(true);
   render::RenderOutput out;

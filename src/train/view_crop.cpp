@@ -64,10 +64,4 @@ core::Camera crop_camera(const core::Camera& camera, const ViewCrop& crop) {
   return out;
 }
 
-torch::Tensor crop_image(const torch::Tensor& image, const ViewCrop& crop) {
-  core::require(image.dim() >= 2 && crop.y1 <= image.size(0) && crop.x1 <= image.size(1),
-                "view crop: the crop lies outside the image");
-  return image.slice(0, crop.y0, crop.y1).slice(1, crop.x0, crop.x1).contiguous();
-}
-
 }  // namespace ddhgs::train

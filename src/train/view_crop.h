@@ -48,7 +48,4 @@ ViewCrop draw_view_crop(int width, int height, double fraction, uint64_t seed);
 // as its frame (core::Intrinsics). camera must see a whole view.
 core::Camera crop_camera(const core::Camera& camera, const ViewCrop& crop);
 
-// image [H, W, ...] narrowed to the crop, contiguous.
-torch::Tensor crop_image(const torch::Tensor& image, const ViewCrop& crop);
-
 }  // namespace ddhgs::train

@@ -243,6 +243,49 @@ TEST(Dataset, FloatCubesStayExact) {
   EXPECT_TRUE(torch::allclose(scene->image(0), expected, 1e-6, 1e-7));
 }
 
+// Scene::image(view, window) converts only a window's samples; it must equal
+// narrowing the whole converted view, for every stored sample type (the band
+// gather copies raw bits) and across the gather's 4096-pixel blocks.
+TEST(Dataset, ImageWindowsEqualTheNarrowedImage) {
+  const int64_t h = 60, w = 80, bands = 7;  // 4800 pixels: two blocks
+  torch::manual_seed(4);
+  const torch::Tensor u16 =
+      torch::randint(0, 65536, {h, w, bands}).to(torch::kInt32).to(torch::kInt16);
+  for (auto [name, data, type] :
+       {std::tuple{"u8", pattern(0, h, w, bands), SampleType::U8},
+        std::tuple{"u16", u16, SampleType::U16},
+        std::tuple{"f16", torch::rand({h, w, bands}).to(torch::kHalf), SampleType::F16},
+        std::tuple{"f32", torch::rand({h, w, bands}), SampleType::F32}}) {
+    const fs::path root = test::temp_dir(std::string("ds_window_") + name);
+    SceneSpec spec;
+    spec.height = h;
+    spec.width = w;
+    spec.bands = bands;
+    spec.wavelengths_nm = {400, 450, 500, 550, 600, 650, 700};
+    write_scene(root, spec);
+    write_npy(root / "hyperspectral" / "r_03.npy", data, type);
+    auto scene = load_scene(root);
+    const torch::Tensor whole = scene->image(3);
+    const torch::Tensor drawn = torch::tensor({0, 2, 3, 6}, torch::kInt64);
+    ImageWindow window{5, 9, 71, 50, drawn};
+    EXPECT_TRUE(
+        scene->image(3, window).equal(whole.slice(0, 9, 50).slice(1, 5, 71).index_select(2, drawn)))
+        << name;
+    EXPECT_TRUE(scene->image(3, {}).equal(whole)) << name;
+    EXPECT_TRUE(scene->image(3, {0, 0, 0, 0, drawn}).equal(whole.index_select(2, drawn))) << name;
+    EXPECT_TRUE(scene->image(3, {2, 1, 30, 0, {}}).equal(whole.slice(0, 1).slice(1, 2, 30)))
+        << name;
+    EXPECT_TRUE(contains(error_of([&] {
+                           scene->image(3, {0, 0, w + 1, 0, {}});
+                         }),
+                         "image window lies outside the view"));
+    EXPECT_TRUE(contains(error_of([&] {
+                           scene->image(3, {0, 0, 0, 0, torch::tensor({0, 7}, torch::kInt64)});
+                         }),
+                         "bands out of range"));
+  }
+}
+
 TEST(Dataset, RgbScenes) {
   fs::path root = test::temp_dir("ds_rgb");
   write_scene(root, {});

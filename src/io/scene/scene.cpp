@@ -10,6 +10,7 @@
 #include "core/colour.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/parallel.h"
 #include "io/scene/scene.h"
 
 namespace ddhgs::io {
@@ -201,12 +202,65 @@ Cube Scene::cached_view(const fs::path& path, const View& view) const {
   return cube;
 }
 
-torch::Tensor Scene::image(int view) const {
+namespace {
+
+// The samples of data [H, W, B] (any sample type) at bands, copied bit for bit.
+template <typename Bits>
+torch::Tensor gather_bands(const torch::Tensor& data, const torch::Tensor& bands) {
+  const torch::Tensor in = data.contiguous();
+  const int64_t pixels = in.size(0) * in.size(1), n = in.size(2), count = bands.size(0);
+  torch::Tensor out = torch::empty({in.size(0), in.size(1), count}, in.options());
+  const auto* src = static_cast<const Bits*>(in.data_ptr());
+  auto* dst = static_cast<Bits*>(out.data_ptr());
+  const int64_t* index = bands.data_ptr<int64_t>();
+  core::parallel_for(0, pixels, 4096, [&](int64_t begin, int64_t end) {
+    for (int64_t p = begin; p < end; ++p)
+      for (int64_t j = 0; j < count; ++j) dst[p * count + j] = src[p * n + index[j]];
+  });
+  return out;
+}
+
+}  // namespace
+
+torch::Tensor Scene::image(int view, const ImageWindow& window) const {
   core::require(view >= 0 && view < int(views.size()), root,
                 "view index " + std::to_string(view) + " out of range");
   const View& v = views[size_t(view)];
   Cube cube = cached_view(v.data_path, v);
+  const int64_t x1 = window.x1 > 0 ? window.x1 : cube.width();
+  const int64_t y1 = window.y1 > 0 ? window.y1 : cube.height();
+  core::require(window.x0 >= 0 && window.y0 >= 0 && window.x0 < x1 && window.y0 < y1 &&
+                    x1 <= cube.width() && y1 <= cube.height(),
+                v.data_path, "image window lies outside the view");
+  torch::Tensor data = cube.data.slice(0, window.y0, y1).slice(1, window.x0, x1);
+  if (window.bands.defined()) {
+    const torch::Tensor& bands = window.bands;
+    const bool valid = bands.scalar_type() == torch::kInt64 && bands.dim() == 1 &&
+                       (bands.numel() == 0 || (bands.min().item<int64_t>() >= 0 &&
+                                               bands.max().item<int64_t>() < cube.bands()));
+    core::require(valid, v.data_path, "image window bands out of range");
+    switch (cube.data.element_size()) {
+      case 1:
+        data = gather_bands<uint8_t>(data, bands);
+        break;
+      case 2:
+        data = gather_bands<uint16_t>(data, bands);
+        break;
+      case 4:
+        data = gather_bands<uint32_t>(data, bands);
+        break;
+      default:
+        data = gather_bands<uint64_t>(data, bands);
+        break;
+    }
+  }
+  // The cached tensor stays whole: only this copy of the cube is narrowed.
+  cube.data = data.contiguous();
   return cube_to_float(cube, cube.type == stored_type ? scale : 0);
+}
+
+torch::Tensor Scene::image(int view) const {
+  return image(view, ImageWindow{});
 }
 
 torch::Tensor Scene::clean_image(int view) const {

@@ -57,6 +57,14 @@ struct View {
   int64_t file_band_count = 0;
 };
 
+// A part of a view: pixels [x0, x1) x [y0, y1) (x1 or y1 0: to the view's
+// edge) and the bands at the int64 indices `bands` into image()'s bands
+// (undefined: all, in order).
+struct ImageWindow {
+  int64_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  torch::Tensor bands;
+};
+
 class Scene {
  public:
   std::filesystem::path root;
@@ -83,6 +91,9 @@ class Scene {
   // float32 [H, W, N] in [0, 1] at the loaded resolution and bands; for a
   // view that holds some bands, [H, W, its band count].
   torch::Tensor image(int view) const;
+  // image(view) narrowed to a window, equal to narrowing image(view) (the
+  // conversion is per sample), but converting only the window's samples.
+  torch::Tensor image(int view, const ImageWindow& window) const;
   // Clean ground truth, same shape; undefined tensor when there is none.
   torch::Tensor clean_image(int view) const;
   // Bytes one view occupies in the cache (stored type, loaded size).
