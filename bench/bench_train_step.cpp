@@ -103,6 +103,7 @@ nlohmann::json train_config(const fs::path& scene, const Options& o, int64_t gau
   config["model"]["spectral_rank"] = rank;
   config["loss"]["bands_per_step"] = bands_per_step;
   config["loss"]["view_fraction"] = o.view_fraction;
+  config["loss"]["view_fraction_from_pixels"] = 0;  // every size: the fraction asked for
   config["data"]["path"] = fs::absolute(scene).string();
   config["data"]["downscale"] = o.downscale;
   config["init"]["random"] = true;

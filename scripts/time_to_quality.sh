@@ -18,7 +18,8 @@
 # version: each run records a digest of the ddhgs binary and configs/*.json
 # in run_N.version, and the script stops if they differ (after a default
 # changes, use a new DIR with a link to the old DIR's scene).
-# About 42 min for 6000 iterations, 80 min for 12000 on 2 cores.
+# About 42 min for 6000 iterations, 80 min for 12000 on 2 cores (whole views,
+# before crops per step became the default; faster now).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 B="$here/build/ddhgs"

@@ -76,6 +76,7 @@ constexpr Range kRanges[] = {
     {"loss.bands_per_step_until_fraction", 0, 1, false},
     {"loss.view_fraction", 0, 1, true},
     {"loss.view_fraction_until_fraction", 0, 1, false},
+    {"loss.view_fraction_from_pixels", 0, kMaxCount, false, true},
     {"wavelength_encoder.frequencies", 0, 24, false, true},  // 2^24 x a wavelength stays finite
     {"wavelength_encoder.hidden", 1, 4096, false, true},
     {"wavelength_encoder.layers", 1, 64, false, true},

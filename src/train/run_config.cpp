@@ -94,6 +94,7 @@ LossConfig parse_loss(const json& l, const std::string& source) {
       read<double>(l, "loss", "bands_per_step_until_fraction", source);
   c.view_fraction = read<double>(l, "loss", "view_fraction", source);
   c.view_fraction_until_fraction = read<double>(l, "loss", "view_fraction_until_fraction", source);
+  c.view_fraction_from_pixels = read<int64_t>(l, "loss", "view_fraction_from_pixels", source);
   return c;
 }
 

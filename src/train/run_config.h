@@ -74,6 +74,9 @@ struct LossConfig {
   // ... for this fraction of the Gaussian iterations (the first ones); the
   // whole view after.
   double view_fraction_until_fraction = 1;
+  // ... on views of at least this many pixels (crop_fraction); smaller
+  // views stay whole.
+  int64_t view_fraction_from_pixels = 0;
   SpectralLossOptions spectral_options;  // spectral_alpha, spectral_beta, spectral_temperature
   // loss.diffusion is DiffusionTermOptions::weight (RunConfig::diffusion).
 };

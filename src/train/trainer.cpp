@@ -255,7 +255,23 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
                  std::to_string(t->scene_->bands()) + " bands on " +
                  std::to_string(t->scene_->train.size()) + " views (" +
                  std::to_string(t->scene_->test.size()) + " held out)");
+  t->log_crops();
   return t;
+}
+
+void Trainer::log_crops() const {
+  if (scene_->train.empty() || (diffusion_ && diffusion_->options().joint)) return;
+  const core::Intrinsics& in = scene_->views[size_t(scene_->train.front())].camera.intrinsics;
+  const double fraction = crop_fraction(
+      config_.loss.view_fraction, config_.loss.view_fraction_from_pixels, in.width, in.height);
+  if (fraction >= 1 || config_.loss.view_fraction_until_fraction <= 0) return;
+  char text[256];
+  std::snprintf(text, sizeof text,
+                "each step measures a random crop of about %.0f %% of its %dx%d view "
+                "(loss.view_fraction %g, on views of %lld pixels or more; 1: whole views)",
+                100 * fraction, in.width, in.height, config_.loss.view_fraction,
+                static_cast<long long>(config_.loss.view_fraction_from_pixels));
+  core::log_info(text);
 }
 
 void Trainer::initialise() {
@@ -342,7 +358,8 @@ torch::Tensor Trainer::step_bands(int64_t iteration, int view) const {
 }
 
 std::optional<ViewCrop> Trainer::step_crop(int64_t iteration, int width, int height) const {
-  const double fraction = config_.loss.view_fraction;
+  const double fraction = crop_fraction(config_.loss.view_fraction,
+                                        config_.loss.view_fraction_from_pixels, width, height);
   // The joint diffusion term draws its own crops of the whole render.
   const bool joint = diffusion_ && diffusion_->options().joint;
   if (fraction >= 1 || !schedule_.crops_views(iteration) || joint) return std::nullopt;

@@ -92,8 +92,11 @@ class Trainer {
                                             const render::ShRestSink& rest_step = {},
                                             const torch::Tensor& band_map = {},
                                             const ViewCrop* crop = nullptr);
+  // One info line when the steps measure crops of their views.
+  void log_crops() const;
   // The part of a width x height training view iteration measures
-  // (loss.view_fraction, train/view_crop.h), or nullopt for the whole view.
+  // (loss.view_fraction and view_fraction_from_pixels, train/view_crop.h), or nullopt
+  // for the whole view.
   std::optional<ViewCrop> step_crop(int64_t iteration, int width, int height) const;
   // The bands iteration measures (loss.bands_per_step, train/band_draw.h) on
   // training view `view`, or undefined for all of them.

@@ -40,6 +40,10 @@ int window_for(int side, double q) {
 
 }  // namespace
 
+double crop_fraction(double view_fraction, int64_t from_pixels, int width, int height) {
+  return int64_t(width) * int64_t(height) >= from_pixels ? view_fraction : 1;
+}
+
 ViewCrop draw_view_crop(int width, int height, double fraction, uint64_t seed) {
   core::require(fraction > 0 && fraction <= 1, "view crop: fraction must be in (0, 1]");
   ViewCrop crop{0, 0, width, height, 1, 1};

@@ -34,6 +34,13 @@ struct ViewCrop {
   int height() const { return y1 - y0; }
 };
 
+// The fraction of a width x height view a step measures on average:
+// view_fraction for a view of at least from_pixels pixels
+// (loss.view_fraction_from_pixels), 1 (the whole view) for a smaller one.
+// On small views the per-Gaussian part of a step (projection, SH, Adam) is
+// a larger share, so a crop saves less than it costs in pixels measured.
+double crop_fraction(double view_fraction, int64_t from_pixels, int width, int height);
+
 // A crop of a width x height view measuring about fraction of its pixels on
 // average (0 < fraction <= 1), from seed alone. Along each side a window of
 // L pixels starts at an offset drawn uniformly from [-L + m, side - m] (m =

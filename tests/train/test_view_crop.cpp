@@ -1,7 +1,6 @@
-// Random crops of the training views (loss.view_fraction): every pixel away
-// from the border is measured equally often, the loss weight makes the
-// expected gradient the whole view's, and the crop's camera renders exactly
-// that part of the whole view's render.
+// Random crops of the training views (loss.view_fraction and view_fraction_from_pixels): every
+// pixel away from the border is measured equally often, the loss weight makes the expected gradient
+// the whole view's, and the crop's camera renders exactly that part of the whole view's render.
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
@@ -13,6 +12,19 @@
 namespace {
 
 using namespace ddhgs;
+
+// loss.view_fraction_from_pixels: views of at least that many pixels are
+// cropped, smaller ones stay whole.
+TEST(ViewCrop, OnlyViewsOfAtLeastTheThresholdAreCropped) {
+  EXPECT_EQ(train::crop_fraction(0.5, 65536, 640, 512), 0.5);
+  EXPECT_EQ(train::crop_fraction(0.5, 65536, 256, 256), 0.5);
+  EXPECT_EQ(train::crop_fraction(0.5, 65536, 255, 256), 1);
+  EXPECT_EQ(train::crop_fraction(0.5, 65536, 174, 130), 1);
+  EXPECT_EQ(train::crop_fraction(0.3, 0, 16, 16), 0.3);
+  EXPECT_EQ(train::crop_fraction(1, 0, 4000, 3000), 1);
+  // No overflow at large sizes: 65536 x 65536 pixels.
+  EXPECT_EQ(train::crop_fraction(0.5, int64_t(1) << 30, 65536, 65536), 0.5);
+}
 
 TEST(ViewCrop, CoversEveryInnerPixelEquallyAndWeightsAverageToOne) {
   const int width = 96, height = 72, draws = 20000;
