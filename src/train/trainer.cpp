@@ -260,11 +260,10 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
 }
 
 void Trainer::log_crops() const {
-  if (scene_->train.empty() || (diffusion_ && diffusion_->options().joint)) return;
+  if (scene_->train.empty()) return;
   const core::Intrinsics& in = scene_->views[size_t(scene_->train.front())].camera.intrinsics;
-  const double fraction = crop_fraction(
-      config_.loss.view_fraction, config_.loss.view_fraction_from_pixels, in.width, in.height);
-  if (fraction >= 1 || config_.loss.view_fraction_until_fraction <= 0) return;
+  const double fraction = view_fraction(in.width, in.height);
+  if (fraction >= 1 || !schedule_.crops_views(1)) return;
   char text[256];
   std::snprintf(text, sizeof text,
                 "each step measures a random crop of about %.0f %% of its %dx%d view "
@@ -357,12 +356,16 @@ torch::Tensor Trainer::step_bands(int64_t iteration, int view) const {
   return draw_bands(bands, count, mix_seed(config_.seed, kBandStream + uint64_t(iteration)));
 }
 
-std::optional<ViewCrop> Trainer::step_crop(int64_t iteration, int width, int height) const {
-  const double fraction = crop_fraction(config_.loss.view_fraction,
-                                        config_.loss.view_fraction_from_pixels, width, height);
+double Trainer::view_fraction(int width, int height) const {
   // The joint diffusion term draws its own crops of the whole render.
-  const bool joint = diffusion_ && diffusion_->options().joint;
-  if (fraction >= 1 || !schedule_.crops_views(iteration) || joint) return std::nullopt;
+  if (diffusion_ && diffusion_->options().joint) return 1;
+  return crop_fraction(config_.loss.view_fraction, config_.loss.view_fraction_from_pixels, width,
+                       height);
+}
+
+std::optional<ViewCrop> Trainer::step_crop(int64_t iteration, int width, int height) const {
+  const double fraction = view_fraction(width, height);
+  if (fraction >= 1 || !schedule_.crops_views(iteration)) return std::nullopt;
   const ViewCrop crop = draw_view_crop(width, height, fraction,
                                        mix_seed(config_.seed, kCropStream + uint64_t(iteration)));
   if (crop.width() == width && crop.height() == height) return std::nullopt;

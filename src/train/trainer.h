@@ -94,6 +94,9 @@ class Trainer {
                                             const ViewCrop* crop = nullptr);
   // One info line when the steps measure crops of their views.
   void log_crops() const;
+  // The fraction of a width x height training view a cropped step measures
+  // (train::crop_fraction; 1 with the joint diffusion term).
+  double view_fraction(int width, int height) const;
   // The part of a width x height training view iteration measures
   // (loss.view_fraction and view_fraction_from_pixels, train/view_crop.h), or nullopt
   // for the whole view.
