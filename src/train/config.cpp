@@ -94,8 +94,9 @@ void check_version(const json& config, const std::string& source) {
   if (!config.contains("format_version") || !config["format_version"].is_number_integer())
     throw core::Error(source, "missing integer key 'format_version'");
   int version = config["format_version"].get<int>();
-  // No converters: ddhgs has not been released, so a file of another version
-  // is refused rather than read with guessed values.
+  // No converters between versions: a file of another version is refused
+  // rather than read with guessed values (keys added within a version:
+  // fill_added_keys).
   if (version != kConfigFormatVersion)
     throw core::Error(source, "written for config format_version " + std::to_string(version) +
                                   "; this ddhgs reads format_version " +
@@ -160,6 +161,97 @@ json load_preset(const std::string& name_or_path) {
   json config = load_chain(path, 0);
   validate_config(config, path.string());
   return config;
+}
+
+namespace {
+
+// Keys added to configs/default.json after format_version 2 began (7616d39),
+// oldest first, each with the value under which a config written before it
+// trains as it did then. A key that only matters when another, older key
+// switches its feature on gets today's default (it cannot act). A test reads a
+// config.json from the first version 2 through read_run_config: adding a key
+// to default.json without a row here fails it.
+struct AddedKey {
+  const char* key;
+  const char* value;  // JSON
+};
+constexpr AddedKey kAddedKeys[] = {
+    {"model.background_from_views", "false"},
+    {"camera_refinement.enabled", "false"},
+    {"camera_refinement.rotation_lr", "0.0001"},     // refinement off
+    {"camera_refinement.translation_lr", "0.0001"},  // refinement off
+    {"init.extra_random_per_pixel", "0"},            // acts at initialisation only
+    {"model.spectral_rank", "0"},                    // one SH set per band
+    {"optim.basis_lr", "0.001"},                     // per band: no basis
+    {"data.band_step", "1"},
+    {"optim.latent_sh_lr_scale", "1"},
+    {"model.subspace_from_bands", "0"},  // rank -1 took the signal rank at any band count
+    {"output.test_every", "0"},
+    {"diffusion.joint", "true"},
+    {"diffusion.pairs", "\"training\""},
+    {"diffusion.folds", "4"},              // pairs "training"
+    {"diffusion.fold_iterations", "0.5"},  // pairs "training"
+    {"diffusion.distill_steps", "0"},
+    {"diffusion.distill_weight", "0.5"},  // no distillation
+    {"diffusion.distill_every", "2"},     // no distillation
+    {"diffusion.validation_every", "0"},
+    {"diffusion.perturb_px", "2.0"},  // pairs "training"
+    {"loss.bands_per_step", "0"},
+    {"loss.bands_per_step_until_fraction", "1"},  // bands were drawn for the whole run
+    {"loss.view_fraction", "1"},
+    {"loss.view_fraction_until_fraction", "1"},
+    {"loss.view_fraction_from_pixels", "0"},  // every view was cropped at view_fraction
+};
+
+// The one section added whole since format_version 2 began.
+constexpr const char* kAddedSection = "camera_refinement";
+
+json* find_key(json& config, const std::string& key_path, bool create) {
+  json* at = &config;
+  for (size_t start = 0;;) {
+    const size_t dot = key_path.find('.', start);
+    const std::string key = key_path.substr(start, dot == std::string::npos ? dot : dot - start);
+    if (create && at->is_null()) *at = json::object();
+    if (!at->is_object() || (!create && !at->contains(key))) return nullptr;
+    at = &(*at)[key];
+    if (dot == std::string::npos) return at;
+    start = dot + 1;
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> fill_added_keys(json& config, const std::string& source) {
+  std::vector<std::string> changed;
+  if (!config.is_object()) return changed;  // validate_config names the problem
+  for (const AddedKey& added : kAddedKeys) {
+    const std::string key = added.key;
+    const std::string section = key.substr(0, key.find('.'));
+    // A section the file lacks altogether is not an earlier version's (they
+    // all had it), unless the section itself was added since.
+    if (section != kAddedSection && (!config.contains(section) || !config[section].is_object()))
+      continue;
+    if (find_key(config, key, false)) continue;
+    *find_key(config, key, true) = json::parse(added.value);
+    changed.push_back(key + "=" + added.value);
+  }
+  // Removed keys. init.extra_random_points (20,000 random Gaussians, before
+  // init.extra_random_per_pixel) acted only at initialisation.
+  if (json* init = find_key(config, "init", false);
+      init && init->is_object() && init->contains("extra_random_points")) {
+    init->erase("extra_random_points");
+    changed.push_back("init.extra_random_points removed");
+  }
+  if (json* d = find_key(config, "diffusion", false);
+      d && d->is_object() && d->contains("perturb_degrees")) {
+    if (d->value("pairs", "") == "perturbed")
+      throw core::Error(source,
+                        "diffusion.perturb_degrees is from an earlier ddhgs; the turned "
+                        "cameras' turn is now diffusion.perturb_px (pixels): replace it");
+    d->erase("perturb_degrees");
+    changed.push_back("diffusion.perturb_degrees removed");
+  }
+  return changed;
 }
 
 void validate_config(const json& config, const std::string& source) {

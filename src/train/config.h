@@ -4,7 +4,8 @@
 // configs/default.json is the schema: every key a preset, an override or a
 // run's config.json sets must exist there with a compatible type. A preset
 // may "extends" another one (by name or path); keys it sets replace the
-// parent's. Later issues add their keys to default.json.
+// parent's. A key added to default.json gets a row in kAddedKeys
+// (config.cpp): the value under which older run folders keep training as they did.
 #pragma once
 #include <nlohmann/json.hpp>
 
@@ -29,6 +30,17 @@ nlohmann::json load_preset(const std::string& name_or_path);
 
 // Validates a resolved config (e.g. a run's config.json) read from `source`.
 void validate_config(const nlohmann::json& config, const std::string& source);
+
+// Brings a run's config.json written by an earlier ddhgs of this
+// format_version up to today's keys: each key added since then that it lacks
+// gets the value that reproduces how that ddhgs trained (loss.view_fraction 1:
+// whole views; model.spectral_rank 0: per band; ...), not today's default, so
+// an old run resumes, evaluates and renders as it was trained. Keys since
+// removed are dropped when they cannot matter. Returns "key=value" for each
+// key filled or dropped (empty when the config was current); core::Error
+// naming `source` when a removed key mattered. Keys that were never in the
+// format (typos) are left for validate_config to refuse.
+std::vector<std::string> fill_added_keys(nlohmann::json& config, const std::string& source);
 
 // core::Error naming source and the key when a number is outside what the
 // key allows (train/config_values.cpp): iterations >= 1, sh_degree 0..3,

@@ -200,18 +200,17 @@ TEST(Config, ResolvedConfigMustBeComplete) {
 }
 
 TEST(Config, RunConfigsOfAnotherVersionOrMissingAKeyAreRefused) {
-  // ddhgs keeps no converters before its first release: a run folder from an
-  // incompatible version gets one line naming what it lacks or its version.
+  // A run folder of another format_version, or lacking a key that format
+  // always had, gets one line naming what it lacks or its version.
   auto c = train::load_preset("default");
   auto dir = test::temp_dir("old_run_config");
   std::ofstream(dir / "config.json") << c.dump(2);
   EXPECT_EQ(train::read_run_config({dir}), c);
-  c["model"].erase("background_from_views");
+  c["densify"].erase("every");
   std::ofstream(dir / "config.json") << c.dump(2);
   const std::string missing = error_of([&] { train::read_run_config({dir}); });
   EXPECT_NE(missing.find("config.json"), std::string::npos) << missing;
-  EXPECT_NE(missing.find("missing key 'model.background_from_views'"), std::string::npos)
-      << missing;
+  EXPECT_NE(missing.find("missing key 'densify.every'"), std::string::npos) << missing;
   c = train::load_preset("default");
   c["format_version"] = 1;
   std::ofstream(dir / "config.json") << c.dump(2);
@@ -223,6 +222,74 @@ TEST(Config, RunConfigsOfAnotherVersionOrMissingAKeyAreRefused) {
   c["iterations"] = "many";
   std::ofstream(dir / "config.json") << c.dump(2);
   EXPECT_NE(error_of([&] { train::read_run_config({dir}); }).find("'iterations' must be"),
+            std::string::npos);
+}
+
+// A run made by an earlier ddhgs of format_version 2 lacks the keys added
+// since; it reads with the values that reproduce how it trained, not with
+// today's defaults (which would, say, start cropping its views on --resume).
+TEST(Config, RunConfigsFromEarlierVersionsReadWithTheValuesTheyTrainedWith) {
+  // configs/default.json as the first format_version 2 wrote it (7616d39).
+  const auto first = test::source_dir() / "tests/train/data/config_format2_first.json";
+  auto dir = test::temp_dir("earlier_run_config");
+  std::filesystem::copy_file(first, dir / "config.json");
+  const nlohmann::json original = nlohmann::json::parse(std::ifstream(first));
+  const nlohmann::json read = train::read_run_config({dir});
+  // Every key it had keeps its value...
+  for (const auto& [section, keys] : original.items()) {
+    if (!keys.is_object()) {
+      EXPECT_EQ(read.at(section), keys) << section;
+      continue;
+    }
+    for (const auto& [key, value] : keys.items())
+      EXPECT_EQ(read.at(section).at(key), value) << section << "." << key;
+  }
+  // ...and the added ones behave as that version did.
+  const train::RunConfig c = train::parse_run_config(read, "config.json");
+  EXPECT_EQ(c.model.spectral_rank, 0);  // per band
+  EXPECT_FALSE(c.model.background_from_views);
+  EXPECT_FALSE(c.camera_refinement.enabled);
+  EXPECT_EQ(c.data.load.band_step, 1);
+  EXPECT_EQ(c.optim.latent_sh_lr_scale, 1.0);
+  EXPECT_EQ(c.output.test_every, 0);
+  EXPECT_EQ(c.loss.bands_per_step, 0);
+  EXPECT_EQ(c.loss.view_fraction, 1.0);
+  EXPECT_EQ(read["diffusion"]["pairs"], "training");
+  EXPECT_EQ(read["diffusion"]["joint"], true);
+  EXPECT_EQ(read["diffusion"]["validation_every"], 0);
+  EXPECT_EQ(read["diffusion"]["distill_steps"], 0);
+  // The file itself is left as it was: reading never writes.
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(dir / "config.json")), original);
+
+  // A run of last week (crops opt-in, no threshold) cropped every view.
+  auto week = train::load_preset("default");
+  week["loss"]["view_fraction"] = 0.5;
+  week["loss"].erase("view_fraction_from_pixels");
+  week["loss"].erase("bands_per_step_until_fraction");  // before it: drawn all run
+  week["loss"]["bands_per_step"] = 24;
+  std::ofstream(dir / "config.json") << week.dump(2);
+  const train::RunConfig w = train::parse_run_config(train::read_run_config({dir}), "config.json");
+  EXPECT_EQ(w.loss.view_fraction, 0.5);
+  EXPECT_EQ(w.loss.view_fraction_from_pixels, 0);
+  EXPECT_EQ(w.loss.bands_per_step, 24);
+  EXPECT_EQ(w.loss.bands_per_step_until_fraction, 1.0);
+
+  // Removed keys: dropped where they cannot act, refused where they would.
+  auto removed = train::load_preset("default");
+  removed["init"]["extra_random_points"] = 20000;
+  removed["diffusion"]["perturb_degrees"] = 1.0;
+  std::ofstream(dir / "config.json") << removed.dump(2);
+  EXPECT_FALSE(train::read_run_config({dir})["init"].contains("extra_random_points"));
+  removed["diffusion"]["pairs"] = "perturbed";
+  std::ofstream(dir / "config.json") << removed.dump(2);
+  const std::string turned = error_of([&] { train::read_run_config({dir}); });
+  EXPECT_NE(turned.find("config.json"), std::string::npos) << turned;
+  EXPECT_NE(turned.find("diffusion.perturb_px"), std::string::npos) << turned;
+  // A section the file lacks altogether is not an earlier version's.
+  auto no_loss = train::load_preset("default");
+  no_loss.erase("loss");
+  std::ofstream(dir / "config.json") << no_loss.dump(2);
+  EXPECT_NE(error_of([&] { train::read_run_config({dir}); }).find("missing key 'loss'"),
             std::string::npos);
 }
 
