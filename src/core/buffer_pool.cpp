@@ -17,6 +17,22 @@ constexpr size_t kFitNumerator = 5, kFitDenominator = 4;
 constexpr uint64_t kMaxIdleRequests = 64;
 constexpr size_t kAlignment = 64;
 
+// New blocks are sized up to the next of four size classes per octave (at
+// most 19 % more than asked, inside the 5/4 fit): buffers whose size changes
+// from step to step (a random crop of the view per step) then meet blocks of
+// their class again instead of each new size faulting in fresh pages. Powers
+// of two keep their size; every class is a whole number of pages.
+size_t size_class(size_t bytes) {
+  constexpr size_t kPage = 4096;
+  constexpr size_t kSteps[] = {1246974, 1482910, 1763487};           // 2^(k/4) * 2^20, k = 1..3
+  const size_t octave = size_t(1) << (63 - __builtin_clzll(bytes));  // largest power of 2 <= bytes
+  size_t cls = octave;
+  for (size_t k = 0; cls < bytes && k < 3; ++k)
+    cls = octave >= (size_t(1) << 20) ? (octave >> 20) * kSteps[k] : octave;
+  if (cls < bytes) cls = 2 * octave;
+  return (cls + kPage - 1) / kPage * kPage;
+}
+
 struct Block {
   void* data;
   size_t bytes;
@@ -42,7 +58,7 @@ class Pool {
       return found.data;
     }
     evict_stale();
-    capacity = (bytes + kAlignment - 1) / kAlignment * kAlignment;
+    capacity = size_class(bytes);
     void* data = std::aligned_alloc(kAlignment, capacity);
     if (!data) throw std::bad_alloc();
     return data;
