@@ -374,8 +374,13 @@ Sums run_blocks(const Images& im, float* grad) {
 Sums run(const Images& im, float* grad) {
   // Narrow blocks for few bands, so RGB does not compute 13 empty lanes.
   if (im.bands <= 4) return run_blocks<4>(im, grad);
-  if (im.bands <= 8) return run_blocks<8>(im, grad);
-  return run_blocks<16>(im, grad);
+#if defined(__AVX512F__)
+  if (im.bands > 8) return run_blocks<16>(im, grad);
+#endif
+  // One 256-bit register per vector: with two (16 bands on AVX2) the paired
+  // vertical pass's 20 accumulators do not fit the 16 registers and spill on
+  // every tap (2.3-2.8x slower at 640x512x141, one thread).
+  return run_blocks<8>(im, grad);
 }
 
 }  // namespace ddhgs::model::ssim_kernel
