@@ -244,7 +244,7 @@ std::vector<std::string> fill_added_keys(json& config, const std::string& source
   }
   if (json* d = find_key(config, "diffusion", false);
       d && d->is_object() && d->contains("perturb_degrees")) {
-    if (d->value("pairs", "") == "perturbed")
+    if (d->contains("pairs") && (*d)["pairs"] == "perturbed")
       throw core::Error(source,
                         "diffusion.perturb_degrees is from an earlier ddhgs; the turned "
                         "cameras' turn is now diffusion.perturb_px (pixels): replace it");
