@@ -22,13 +22,14 @@ constexpr size_t kAlignment = 64;
 // from step to step (a random crop of the view per step) then meet blocks of
 // their class again instead of each new size faulting in fresh pages. Powers
 // of two keep their size; every class is a whole number of pages.
+// Only pooled sizes come here, so bytes >= 2^20 and octave >> 20 is exact.
+static_assert(kPoolMinBytes >= (size_t(1) << 20));
 size_t size_class(size_t bytes) {
   constexpr size_t kPage = 4096;
   constexpr size_t kSteps[] = {1246974, 1482910, 1763487};           // 2^(k/4) * 2^20, k = 1..3
   const size_t octave = size_t(1) << (63 - __builtin_clzll(bytes));  // largest power of 2 <= bytes
   size_t cls = octave;
-  for (size_t k = 0; cls < bytes && k < 3; ++k)
-    cls = octave >= (size_t(1) << 20) ? (octave >> 20) * kSteps[k] : octave;
+  for (size_t k = 0; cls < bytes && k < 3; ++k) cls = (octave >> 20) * kSteps[k];
   if (cls < bytes) cls = 2 * octave;
   return (cls + kPage - 1) / kPage * kPage;
 }

@@ -223,7 +223,9 @@ json* find_key(json& config, const std::string& key_path, bool create) {
 
 std::vector<std::string> fill_added_keys(json& config, const std::string& source) {
   std::vector<std::string> changed;
-  if (!config.is_object()) return changed;  // validate_config names the problem
+  // Another format_version, or no object: validate_config names the problem.
+  if (!config.is_object() || config.value("format_version", json()) != kConfigFormatVersion)
+    return changed;
   for (const AddedKey& added : kAddedKeys) {
     const std::string key = added.key;
     const std::string section = key.substr(0, key.find('.'));

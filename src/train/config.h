@@ -39,7 +39,8 @@ void validate_config(const nlohmann::json& config, const std::string& source);
 // removed are dropped when they cannot matter. Returns "key=value" for each
 // key filled or dropped (empty when the config was current); core::Error
 // naming `source` when a removed key mattered. Keys that were never in the
-// format (typos) are left for validate_config to refuse.
+// format (typos), and a config of another format_version, are left for
+// validate_config to refuse.
 std::vector<std::string> fill_added_keys(nlohmann::json& config, const std::string& source);
 
 // core::Error naming source and the key when a number is outside what the

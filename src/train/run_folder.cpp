@@ -133,20 +133,17 @@ nlohmann::json read_run_config(const RunPaths& run) {
   if (!fs::exists(run.config())) throw core::Error(run.config(), "missing: not a ddhgs run folder");
   nlohmann::json config = nlohmann::json::parse(io::read_file(run.config()), nullptr, false);
   if (config.is_discarded()) throw core::Error(run.config(), "not valid JSON");
-  if (config.is_object() &&
-      config.value("format_version", nlohmann::json()) == kConfigFormatVersion) {
-    const std::vector<std::string> filled = fill_added_keys(config, run.config().string());
-    if (!filled.empty()) {
-      std::string list;
-      for (const std::string& f : filled) list += (list.empty() ? "" : ", ") + f;
-      static std::mutex mutex;
-      static std::set<std::string> told;  // once per file, however often it is read
-      std::lock_guard<std::mutex> lock(mutex);
-      if (told.insert(fs::absolute(run.config()).string()).second)
-        core::log_info(
-            run.config().string() +
-            " is from an earlier ddhgs; reading it with the values it trained with: " + list);
-    }
+  const std::vector<std::string> filled = fill_added_keys(config, run.config().string());
+  if (!filled.empty()) {
+    std::string list;
+    for (const std::string& f : filled) list += (list.empty() ? "" : ", ") + f;
+    static std::mutex mutex;
+    static std::set<std::string> told;  // once per file, however often it is read
+    std::lock_guard<std::mutex> lock(mutex);
+    if (told.insert(fs::absolute(run.config()).string()).second)
+      core::log_info(
+          run.config().string() +
+          " is from an earlier ddhgs; reading it with the values it trained with: " + list);
   }
   validate_config(config, run.config().string());
   return config;
