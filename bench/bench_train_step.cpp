@@ -9,7 +9,10 @@
 //            rank trains on the same scene, one after the other),
 //            --bands-per-step S[,S...] (loss.bands_per_step, default 0: all;
 //            each value with each rank), --view-fraction F (loss.view_fraction,
-//            default 1: whole views; the rest of a run's schedule as default.json)
+//            default 1: whole views; the rest of a run's schedule as default.json),
+//            --blend-paths P[,P...] (lane, row; default lane: the blender's path
+//            for images of at most 8 channels, render/blend.h; each path with
+//            each rank and bands value, on the same scene: an A/B in one run)
 //
 // Per case it writes a synthetic scene (`ddhgs synth --preset bayspec` with
 // the case's size and band count, supersample 1) to a temporary folder,
@@ -36,6 +39,7 @@
 #include "core/stage_timer.h"
 #include "core/threads.h"
 #include "io/ply/ply.h"
+#include "render/blend.h"
 #include "synth/generate.h"
 #include "train/config.h"
 #include "train/run_folder.h"
@@ -66,6 +70,7 @@ struct Options {
   std::vector<int> ranks = {0};
   std::vector<int> bands_per_step = {0};
   double view_fraction = 1;
+  std::vector<bool> lane_paths = {true};
 };
 
 struct Usage {
@@ -146,7 +151,8 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 // One rank and loss.bands_per_step on the scene, trained in run_dir (a new
 // folder each time: the final save stays in it).
 void run_rank(const Case& c, const Options& o, const fs::path& scene, const fs::path& run_dir,
-              double synth_s, int rank, int bands_per_step) {
+              double synth_s, int rank, int bands_per_step, bool lane_path) {
+  render::set_lane_path(lane_path);
   auto trainer = train::Trainer::start(train_config(scene, o, c.gaussians, rank, bands_per_step),
                                        {run_dir}, false);
   const auto& views = trainer->scene().views;
@@ -165,11 +171,12 @@ void run_rank(const Case& c, const Options& o, const fs::path& scene, const fs::
   const model::Gaussians& g = trainer->state().gaussians;
   std::printf(
       "%dx%d, %lld bands, %s, loss on %s bands and %g of the pixels, %lld Gaussians, threads %d, "
-      "%d iterations (after %d warm-up), scene %.0f s\n",
+      "%d iterations (after %d warm-up), scene %.0f s%s\n",
       in.width, in.height, (long long)trainer->scene().bands(),
       g.colour.latent() ? ("rank " + std::to_string(g.colour.rank())).c_str() : "per band",
       bands_per_step > 0 ? std::to_string(bands_per_step).c_str() : "all", o.view_fraction,
-      (long long)g.size(), core::thread_count(), k, o.warmup, synth_s);
+      (long long)g.size(), core::thread_count(), k, o.warmup, synth_s,
+      o.lane_paths.size() > 1 ? (lane_path ? ", lane path" : ", row path") : "");
   std::printf(
       "  per iteration: wall %.3f s, CPU %.3f s (user %.3f + system %.3f, system %.1f %%), "
       "minor faults %lld; peak RSS %.0f MiB\n",
@@ -201,7 +208,9 @@ void run_case(const Case& c, const Options& o) {
   int runs = 0;
   for (int rank : o.ranks)
     for (int bands_per_step : o.bands_per_step)
-      run_rank(c, o, scene, dir / ("run_" + std::to_string(++runs)), synth_s, rank, bands_per_step);
+      for (bool lane_path : o.lane_paths)
+        run_rank(c, o, scene, dir / ("run_" + std::to_string(++runs)), synth_s, rank,
+                 bands_per_step, lane_path);
 }
 
 [[noreturn]] void usage_error(const char* message) {
@@ -246,6 +255,17 @@ Options parse(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--view-fraction")) {
       if (i + 1 >= argc) usage_error("--view-fraction needs a value");
       o.view_fraction = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--blend-paths")) {
+      if (i + 1 >= argc) usage_error("--blend-paths needs a list");
+      o.lane_paths.clear();
+      const std::string text = argv[++i];
+      for (size_t at = 0; at <= text.size();) {
+        const size_t comma = std::min(text.find(',', at), text.size());
+        const std::string path = text.substr(at, comma - at);
+        if (path != "lane" && path != "row") usage_error("--blend-paths takes lane and row");
+        o.lane_paths.push_back(path == "lane");
+        at = comma + 1;
+      }
     } else if (!std::strcmp(argv[i], "--scene")) {
       if (i + 1 >= argc) usage_error("--scene needs a folder");
       o.scene = argv[++i];

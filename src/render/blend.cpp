@@ -9,6 +9,7 @@
 #include "core/parallel.h"
 #include "render/aligned.h"
 #include "render/channel_kernels.h"
+#include "render/lane_blend.h"
 #include "render/pair_grads.h"
 #include "render/ranked.h"
 #include "render/recycle.h"
@@ -27,6 +28,13 @@ bool wide() {
   return false;
 }
 #endif
+
+std::atomic<bool> lanes_allowed{true};
+// Whether an image of n channels takes the lane path (lane_blend.h).
+bool lanes_on(int64_t n) {
+  return kLanePathBuilt && n >= 1 && n <= kLaneChannels &&
+         lanes_allowed.load(std::memory_order_relaxed);
+}
 
 constexpr int kPixels = kTileSize * kTileSize;
 constexpr int kChunk = 64;  // Gaussians per chunk: one bit each in a 64-bit pixel mask
@@ -53,6 +61,12 @@ struct TileScratch {
   const float* pix_rows[kPixels];              // row of acc for each pixel
   AlignedVector<float> acc;  // [kPixels, np] colour sums (forward) or dL/dimage (backward)
   uint8_t touched[kPixels];  // forward: acc row holds a sum (rows are not zeroed up front)
+  // The lane path (lane_blend.h): per group, channel-major [group][channel][lane],
+  // the colour sums (forward) or dL/dpixel (backward); the depth sums; the
+  // backward's dL/dcolour lane sums per chunk Gaussian.
+  alignas(32) float lanes[kGroups * kLaneChannels * kRowLanes];
+  alignas(32) float lane_depth[kPixels];
+  alignas(32) ColourLanes colour_lanes[kChunk];
 
   void start(const TileBins& bins, int tile, int width, int height, int np) {
     x0 = (tile % bins.tiles_x) * kTileSize, y0 = (tile / bins.tiles_x) * kTileSize;
@@ -108,19 +122,15 @@ int clip(float v, int lo, int hi) {
   return v < float(lo) ? lo : v > float(hi) ? hi : int(v);
 }
 
-// The 3DGS per-pixel recurrence for one chunk of depth ranks. First each
-// splat's ellipse, row span by row span (span_groups), marks the 8-pixel
-// groups it may reach; then each group runs through its splats in depth order
-// (blend_group). One function for forward and backward, so the backward
-// replays exactly the same float operations. ranks[0, remaining) are valid
-// (the rest of the tile's list), ranks[0, m) form this chunk. grad_rows
-// ([V, np] in rank order, may be null): the backward's colour gradient rows,
-// prefetched like the colours.
-void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int remaining,
-                 int np, bool backward, float* grad_rows = nullptr) {
-  if (backward) std::memset(s.gmask, 0, sizeof s.gmask);
-  uint64_t members[kGroups] = {};  // bit k: chunk Gaussian k may reach the group
-  const Splat* splats[kChunk];
+// The chunk's splats and, per 8-pixel group, the chunk Gaussians whose
+// ellipse may reach it (bit k of members[group]), from each splat's row
+// spans (span_groups); colour rows (and the backward's colour gradient rows
+// grad_rows, [V, np] in rank order, may be null) of the splats that reach a
+// group are prefetched. ranks[0, remaining) are valid (the rest of the
+// tile's list), ranks[0, m) form this chunk.
+void chunk_members(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int remaining,
+                   int np, const float* grad_rows, uint64_t* members, const Splat** splats) {
+  std::fill(members, members + kGroups, uint64_t(0));
   for (int k = 0; k < m; ++k) {
     if (k + kSplatLookahead < remaining)
       __builtin_prefetch(&ranked.splats[ranks[k + kSplatLookahead]]);
@@ -143,6 +153,26 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
       if (grad_rows) prefetch_row(grad_rows + size_t(ranks[k]) * np, np);
     }
   }
+}
+
+// Centres of group gr's first pixel (x) and row (y).
+float group_x(const TileScratch& s, int gr) {
+  return float(s.x0 + gr % kGroupsPerRow * kRowLanes) + 0.5f;
+}
+float group_y(const TileScratch& s, int gr) {
+  return float(s.y0 + gr / kGroupsPerRow) + 0.5f;
+}
+
+// The row path's per-pixel recurrence for one chunk of depth ranks: the
+// chunk's members (chunk_members), then each group runs through its splats
+// in depth order (blend_group). One function for forward and backward, so
+// the backward replays exactly the same float operations.
+void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int remaining,
+                 int np, bool backward, float* grad_rows = nullptr) {
+  if (backward) std::memset(s.gmask, 0, sizeof s.gmask);
+  uint64_t members[kGroups];
+  const Splat* splats[kChunk];
+  chunk_members(s, ranked, ranks, m, remaining, np, grad_rows, members, splats);
   for (int gr = 0; gr < kGroups; ++gr) {
     const int p = gr * kRowLanes;
     if (members[gr] == 0 || s.live[gr] == 0) {
@@ -158,13 +188,96 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
                          kPixels / 64,
                          p / 64,
                          p % 64};
-    const float px0 = float(s.x0 + gr % kGroupsPerRow * kRowLanes) + 0.5f;
-    const float py = float(s.y0 + gr / kGroupsPerRow) + 0.5f;
-    blend_group(splats, members[gr], px0, py, st, out);
+    blend_group(splats, members[gr], group_x(s, gr), group_y(s, gr), st, out);
     s.ndone += __builtin_popcount(s.live[gr] & ~st.live);
     s.live[gr] = uint8_t(st.live);
   }
 }
+
+// Adds chunk Gaussian k's lane partial sums of the gradient slots to its
+// rank's row of ggeo ([V, kSlots]).
+void add_geo(const TileScratch& s, const Ranked& ranked, const int32_t* ranks, int k, float* ggeo) {
+  float geo[kSlots];
+  for (int q = 0; q < kSlots; ++q) {
+    float sum = 0;
+    for (int i = 0; i < kRowLanes; ++i) sum += s.geo[k][q][i];
+    geo[q] = sum;
+  }
+  // d alpha / d o = exp(-power) = raw / o; Gaussians without pairs
+  // (possibly o = 0) keep their zero.
+  if (geo[kOpacity] != 0) geo[kOpacity] /= ranked.splats[ranks[k]].opacity;
+  for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ranks[k]) * kSlots + q] += geo[q];
+}
+
+#if defined(__AVX2__) && defined(__FMA__)
+// The lane path's forward of one tile (started): colour and depth sums in
+// s.lanes and s.lane_depth; returns the pairs blended.
+template <int C>
+int64_t lane_forward_tile(TileScratch& s, const Ranked& ranked, const TileBins& bins, int tile,
+                          int np) {
+  std::fill(s.lanes, s.lanes + kGroups * C * kRowLanes, 0.0f);
+  std::fill(s.lane_depth, s.lane_depth + kPixels, 0.0f);
+  int64_t pairs = 0;
+  const int32_t end = bins.offsets[tile + 1];
+  for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
+    const int32_t* ranks = bins.ranks.data() + b;
+    const int m = std::min<int32_t>(kChunk, end - b);
+    uint64_t members[kGroups];
+    const Splat* splats[kChunk];
+    chunk_members(s, ranked, ranks, m, end - b, np, nullptr, members, splats);
+    for (int gr = 0; gr < kGroups; ++gr) {
+      if (members[gr] == 0 || s.live[gr] == 0) continue;
+      const int p = gr * kRowLanes;
+      GroupState st{s.T + p, s.live[gr], nullptr};
+      pairs +=
+          lane_forward_group<C>(splats, s.col_rows, members[gr], group_x(s, gr), group_y(s, gr), st,
+                                s.lanes + gr * C * kRowLanes, s.lane_depth + p);
+      s.ndone += __builtin_popcount(s.live[gr] & ~st.live);
+      s.live[gr] = uint8_t(st.live);
+    }
+  }
+  return pairs;
+}
+
+// The lane path's backward of one tile (started, s.lanes holding dL/dpixel):
+// every gradient in the replay pass, into gcol ([V, np]) and ggeo ([V,
+// kSlots]) in rank order.
+template <int C>
+void lane_backward_tile(TileScratch& s, const Ranked& ranked, const TileBins& bins, int tile,
+                        int np, const float* dd, const float* tf, const float* dtf,
+                        const double* total, double* prefix, float* gcol, float* ggeo) {
+  const int32_t end = bins.offsets[tile + 1];
+  for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
+    const int32_t* ranks = bins.ranks.data() + b;
+    const int m = std::min<int32_t>(kChunk, end - b);
+    uint64_t members[kGroups];
+    const Splat* splats[kChunk];
+    chunk_members(s, ranked, ranks, m, end - b, np, gcol, members, splats);
+    std::memset(s.geo, 0, sizeof(SlotLanes) * size_t(m));
+    std::memset(s.colour_lanes, 0, sizeof(ColourLanes) * size_t(m));
+    for (int gr = 0; gr < kGroups; ++gr) {
+      if (members[gr] == 0 || s.live[gr] == 0) continue;
+      const int p = gr * kRowLanes;
+      GroupState st{s.T + p, s.live[gr], nullptr};
+      const LaneGroupGrads in{
+          s.lanes + gr * C * kRowLanes, dd + p, tf + p, dtf + p, total + p, prefix + p};
+      lane_backward_group<C>(splats, s.col_rows, members[gr], group_x(s, gr), group_y(s, gr), st,
+                             in, s.geo, s.colour_lanes);
+      s.ndone += __builtin_popcount(s.live[gr] & ~st.live);
+      s.live[gr] = uint8_t(st.live);
+    }
+    for (int k = 0; k < m; ++k) {
+      add_geo(s, ranked, ranks, k, ggeo);
+      float* row = gcol + int64_t(ranks[k]) * np;
+      for (int c = 0; c < C; ++c) {
+        float sum = 0;
+        for (int i = 0; i < kRowLanes; ++i) sum += s.colour_lanes[k][c][i];
+        row[c] += sum;
+      }
+    }
+  }
+}
+#endif
 
 // The chunk Gaussians that blend pixel p, in depth order.
 int pixel_gaussians(const TileScratch& s, int p, uint8_t* gauss) {
@@ -247,6 +360,14 @@ bool wide_kernels_built() {
 #endif
 }
 
+bool lane_path_built() {
+  return kLanePathBuilt;
+}
+
+void set_lane_path(bool on) {
+  lanes_allowed.store(on, std::memory_order_relaxed);
+}
+
 void set_wide_kernels([[maybe_unused]] bool on) {
 #if defined(__AVX512F__)
   wide_on.store(on, std::memory_order_relaxed);
@@ -272,6 +393,7 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
   float* final_T = keep_final_T ? out.final_T.data_ptr<float>() : nullptr;
   const int lists = int(bins.thread_tiles.size());
   [[maybe_unused]] const bool use_wide = wide();
+  [[maybe_unused]] const bool lane_path = lanes_on(n);
 
   std::atomic<int64_t> total_pairs{0};
   // One chunk per tile list: any thread may run any list.
@@ -284,6 +406,28 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
         const int tile = tiles[i];
         if (i + 1 < tiles.size()) prefetch_tile_head(ranked, bins, tiles[i + 1]);
         s.start(bins, tile, width, height, np);
+#if defined(__AVX2__) && defined(__FMA__)
+        if (lane_path) {
+          with_lane_channels(int(n), [&](auto channels) {
+            constexpr int C = decltype(channels)::value;
+            pairs += lane_forward_tile<C>(s, ranked, bins, tile, np);
+            for (int y = s.y0; y < s.y1; ++y)
+              for (int x = s.x0; x < s.x1; ++x) {
+                const int p = s.pixel(x, y);
+                const int64_t o = int64_t(y) * width + x;
+                const float* sums = s.lanes + p / kRowLanes * C * kRowLanes + p % kRowLanes;
+                alignas(32) float row[kLaneChannels];
+                for (int c = 0; c < C; ++c) row[c] = sums[c * kRowLanes];
+                const float t = s.T[p];
+                kernels::write_pixel(img + o * n, row, t, bg, n);
+                alpha[o] = 1.0f - t;
+                depth[o] = s.lane_depth[p];
+                if (final_T) final_T[o] = t;
+              }
+          });
+          continue;
+        }
+#endif
         float dsum[kPixels] = {};
         const int32_t end = bins.offsets[tile + 1];
         for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
@@ -355,6 +499,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
   const float* dep = fwd.depth.data_ptr<float>();
   const float* final_T = fwd.final_T.data_ptr<float>();
   [[maybe_unused]] const bool use_wide = wide();
+  [[maybe_unused]] const bool lane_path = lanes_on(n);
 
   core::parallel_for(0, lists, 1, [&](int64_t list_begin, int64_t list_end) {
     for (int64_t list = list_begin; list < list_end; ++list) {
@@ -372,22 +517,38 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
         s.start(bins, tile, width, height, np);
         // Per pixel: dL/dD, final T, dL/dT_final and the total sum_j g_j w_j,
         // so the suffix sum each pair needs is total - prefix (no reverse pass).
-        float dd[kPixels] = {}, tf[kPixels] = {}, dtf[kPixels] = {};
-        double total[kPixels] = {}, prefix[kPixels] = {};
+        alignas(32) float dd[kPixels] = {}, tf[kPixels] = {}, dtf[kPixels] = {};
+        alignas(32) double total[kPixels] = {}, prefix[kPixels] = {};
+        if (lane_path) std::fill(s.lanes, s.lanes + kGroups * n * kRowLanes, 0.0f);
         for (int y = s.y0; y < s.y1; ++y)
           for (int x = s.x0; x < s.x1; ++x) {
             const int p = s.pixel(x, y);
             const int64_t o = int64_t(y) * width + x;
             const float* dc = dimg + o * n;
-            float* row = s.acc.data() + size_t(p) * np;
-            std::copy(dc, dc + n, row);
-            std::fill(row + n, row + np, 0.0f);  // padding meets zero colour padding
+            if (lane_path) {
+              // Channel-major per group; lanes outside the image stay zero.
+              float* lanes = s.lanes + p / kRowLanes * n * kRowLanes + p % kRowLanes;
+              for (int64_t c = 0; c < n; ++c) lanes[c * kRowLanes] = dc[c];
+            } else {
+              float* row = s.acc.data() + size_t(p) * np;
+              std::copy(dc, dc + n, row);
+              std::fill(row + n, row + np, 0.0f);  // padding meets zero colour padding
+            }
             tf[p] = final_T[o];
             dd[p] = ddepth ? ddepth[o] : 0.0f;
             const kernels::PixelSums sums = kernels::pixel_sums(dc, img + o * n, tf[p], bg, n, gbg);
             total[p] = double(dd[p]) * dep[o] + sums.dot_image;
             dtf[p] = float((dalpha ? -double(dalpha[o]) : 0.0) + sums.dot_background);
           }
+#if defined(__AVX2__) && defined(__FMA__)
+        if (lane_path) {
+          with_lane_channels(int(n), [&](auto channels) {
+            lane_backward_tile<decltype(channels)::value>(s, ranked, bins, tile, np, dd, tf, dtf,
+                                                          total, prefix, gcol, ggeo);
+          });
+          continue;
+        }
+#endif
         const int32_t end = bins.offsets[tile + 1];
         for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
           const int32_t* ranks = bins.ranks.data() + b;
@@ -412,36 +573,13 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
           for (int gr = 0; gr < kGroups; ++gr) {
             const int p = gr * kRowLanes;
             if (group_members[gr] == 0) continue;
-            const GroupPairs in{s.weight + p,
-                                s.raw + p,
-                                s.trans + p,
-                                s.gdot + p,
-                                kPixels,
-                                &s.gmask[0][0],
-                                kPixels / 64,
-                                p / 64,
-                                p % 64,
-                                dd + p,
-                                tf + p,
-                                dtf + p,
-                                total + p,
-                                prefix + p,
-                                float(s.x0 + gr % kGroupsPerRow * kRowLanes) + 0.5f,
-                                float(s.y0 + gr / kGroupsPerRow) + 0.5f};
+            const GroupPairs in{s.weight + p, s.raw + p,      s.trans + p,    s.gdot + p,
+                                kPixels,      &s.gmask[0][0], kPixels / 64,   p / 64,
+                                p % 64,       dd + p,         tf + p,         dtf + p,
+                                total + p,    prefix + p,     group_x(s, gr), group_y(s, gr)};
             group_pair_grads(splats, group_members[gr], in, s.geo);
           }
-          for (int k = 0; k < m; ++k) {
-            float geo[kSlots];
-            for (int q = 0; q < kSlots; ++q) {
-              float sum = 0;
-              for (int i = 0; i < kRowLanes; ++i) sum += s.geo[k][q][i];
-              geo[q] = sum;
-            }
-            // d alpha / d o = exp(-power) = raw / o; Gaussians without pairs
-            // (possibly o = 0) keep their zero.
-            if (geo[kOpacity] != 0) geo[kOpacity] /= ranked.splats[ranks[k]].opacity;
-            for (int q = 0; q < kSlots; ++q) ggeo[int64_t(ranks[k]) * kSlots + q] += geo[q];
-          }
+          for (int k = 0; k < m; ++k) add_geo(s, ranked, ranks, k, ggeo);
         }
       }
     }

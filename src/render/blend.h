@@ -25,6 +25,13 @@ struct BlendForward {
 bool wide_kernels_built();
 void set_wide_kernels(bool on);
 
+// Images of at most 8 channels (a latent colour model's, RGB) are blended
+// channel-major in the 8 pixel lanes of a group (render/lane_blend.h), where
+// the build has AVX2 and FMA; set_lane_path(false) sends them through the
+// row path that wider images take, so that tests can check both.
+bool lane_path_built();
+void set_lane_path(bool on);
+
 // colors: [G, N] contiguous float32, background: [N] contiguous float32.
 BlendForward blend_forward(const Projected& projected, const torch::Tensor& colors,
                            const torch::Tensor& background, const TileBins& bins, int width,

@@ -164,52 +164,81 @@ inline __m256 lane_mask(unsigned bits) {
       _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(int(bits)), lane_bit), lane_bit));
 }
 
+// One splat against a group's 8 pixels (centres xs, row centre py), with
+// transmittance t and live lanes before it: the 3DGS per-pair arithmetic.
+// Every blender path (the row path's blend_group, the lane paths of
+// lane_blend.h, forward and backward) takes its decisions from this one
+// function, so a backward replays its forward bit for bit.
+struct PairStep {
+  __m256 raw;     // o exp(-power), before the 0.99 clamp
+  __m256 weight;  // alpha * t
+  __m256 next;    // t (1 - alpha)
+  __m256 blend;   // lanes where the pair blends
+  __m256 stop;    // lanes that stop here (transmittance would fall below 1e-4)
+};
+
+inline PairStep pair_step(const Splat& g, __m256 xs, float py, __m256 t, __m256 live) {
+  const float dy = g.my - py;
+  const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(g.mx), xs);
+  // power = 0.5 (a dx^2 + c dy^2) + b dx dy
+  const __m256 quad =
+      _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(g.a), dx), dx, _mm256_set1_ps(g.c * dy * dy));
+  const __m256 power =
+      _mm256_fmadd_ps(_mm256_set1_ps(0.5f), quad, _mm256_mul_ps(_mm256_set1_ps(g.b * dy), dx));
+  PairStep p;
+  p.raw = _mm256_mul_ps(_mm256_set1_ps(g.opacity),
+                        exp_nonpositive(_mm256_sub_ps(_mm256_setzero_ps(), power)));
+  const __m256 alpha = _mm256_min_ps(p.raw, _mm256_set1_ps(kMaxAlpha));
+  const __m256 keep = _mm256_and_ps(_mm256_cmp_ps(power, _mm256_set1_ps(g.skip_power), _CMP_LE_OQ),
+                                    _mm256_cmp_ps(alpha, _mm256_set1_ps(kMinAlpha), _CMP_GE_OQ));
+  p.next = _mm256_mul_ps(t, _mm256_sub_ps(_mm256_set1_ps(1.0f), alpha));
+  const __m256 low = _mm256_cmp_ps(p.next, _mm256_set1_ps(kMinTransmittance), _CMP_LT_OQ);
+  const __m256 pass = _mm256_and_ps(keep, live);
+  p.blend = _mm256_andnot_ps(low, pass);
+  p.stop = _mm256_and_ps(pass, low);
+  p.weight = _mm256_mul_ps(alpha, t);
+  return p;
+}
+
+// The group's state after the pair.
+inline void advance(const PairStep& p, __m256& t, __m256& live) {
+  t = _mm256_blendv_ps(t, p.next, p.blend);
+  live = _mm256_andnot_ps(p.stop, live);
+}
+
+// The group's 8 pixel centres in x, from the first one's.
+inline __m256 group_xs(float px0) {
+  return _mm256_add_ps(_mm256_set1_ps(px0), _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
+}
+
 // Pixels with centres px0 + i (i < 8) in the row with centre py against the
 // chunk Gaussians in members (bit k: splats[k]): a pixel blends where it is
 // live, alpha >= 1/255 and T stays >= 1e-4; where T would fall below 1e-4 it
 // stops instead.
 inline void blend_group(const Splat* const* splats, uint64_t members, float px0, float py,
                         GroupState& st, const PairStores& out) {
-  const __m256 xs = _mm256_add_ps(_mm256_set1_ps(px0), _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
+  const __m256 xs = group_xs(px0);
   __m256 t = _mm256_load_ps(st.T);
   __m256 live = lane_mask(st.live);
   __m256i pm_lo = _mm256_setzero_si256(), pm_hi = _mm256_setzero_si256();
   for (; members; members &= members - 1) {
     const int k = __builtin_ctzll(members);
-    const Splat& g = *splats[k];
-    const float dy = g.my - py;
-    const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(g.mx), xs);
-    // power = 0.5 (a dx^2 + c dy^2) + b dx dy
-    const __m256 quad =
-        _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(g.a), dx), dx, _mm256_set1_ps(g.c * dy * dy));
-    const __m256 power =
-        _mm256_fmadd_ps(_mm256_set1_ps(0.5f), quad, _mm256_mul_ps(_mm256_set1_ps(g.b * dy), dx));
-    const __m256 r = _mm256_mul_ps(_mm256_set1_ps(g.opacity),
-                                   exp_nonpositive(_mm256_sub_ps(_mm256_setzero_ps(), power)));
-    const __m256 alpha = _mm256_min_ps(r, _mm256_set1_ps(kMaxAlpha));
-    const __m256 keep =
-        _mm256_and_ps(_mm256_cmp_ps(power, _mm256_set1_ps(g.skip_power), _CMP_LE_OQ),
-                      _mm256_cmp_ps(alpha, _mm256_set1_ps(kMinAlpha), _CMP_GE_OQ));
-    const __m256 next = _mm256_mul_ps(t, _mm256_sub_ps(_mm256_set1_ps(1.0f), alpha));
-    const __m256 low = _mm256_cmp_ps(next, _mm256_set1_ps(kMinTransmittance), _CMP_LT_OQ);
-    const __m256 pass = _mm256_and_ps(keep, live);
-    const __m256 blend = _mm256_andnot_ps(low, pass);
+    const PairStep p = pair_step(*splats[k], xs, py, t, live);
     const size_t at = size_t(k) * out.stride;
-    _mm256_store_ps(out.weight + at, _mm256_mul_ps(alpha, t));
+    _mm256_store_ps(out.weight + at, p.weight);
     if (out.raw) {
-      _mm256_store_ps(out.raw + at, r);
+      _mm256_store_ps(out.raw + at, p.raw);
       _mm256_store_ps(out.trans + at, t);
     }
-    t = _mm256_blendv_ps(t, next, blend);
-    live = _mm256_andnot_ps(_mm256_and_ps(pass, low), live);
+    advance(p, t, live);
     const __m256i kbit = _mm256_set1_epi64x(int64_t(uint64_t(1) << k));
-    const __m256i b = _mm256_castps_si256(blend);
+    const __m256i b = _mm256_castps_si256(p.blend);
     pm_lo = _mm256_or_si256(
         pm_lo, _mm256_and_si256(kbit, _mm256_cvtepi32_epi64(_mm256_castsi256_si128(b))));
     pm_hi = _mm256_or_si256(
         pm_hi, _mm256_and_si256(kbit, _mm256_cvtepi32_epi64(_mm256_extracti128_si256(b, 1))));
     if (out.gmask)
-      out.gmask[k * out.words + out.word] |= uint64_t(unsigned(_mm256_movemask_ps(blend)))
+      out.gmask[k * out.words + out.word] |= uint64_t(unsigned(_mm256_movemask_ps(p.blend)))
                                              << out.shift;
     if (_mm256_movemask_ps(live) == 0) break;
   }
