@@ -8,6 +8,7 @@
 // pair_step, as in the row path.
 #pragma once
 #include <cstdint>
+#include <type_traits>
 
 #include "render/pair_grads.h"
 #include "render/splat_row.h"
@@ -15,6 +16,19 @@
 namespace ddhgs::render {
 
 constexpr int kLaneChannels = 8;  // the most channels the lane path takes
+
+// One group's per-pixel inputs to the lane backward (8 pixels each).
+struct LaneGroupGrads {
+  const float* d_colour;  // [C][8] dL/dpixel, channel-major
+  const float* dd;        // dL/d depth image
+  const float* tf;        // final transmittance
+  const float* dtf;       // dL/d final transmittance
+  const double* total;    // sum over the pixel's pairs of g w, plus the background term
+  double* prefix;         // running sum of g w over the pairs so far, advanced in place
+};
+
+// Lane partial sums of dL/dcolour: [chunk Gaussian][channel][lane].
+using ColourLanes = float[kLaneChannels][8];
 
 #if defined(__AVX2__) && defined(__FMA__)
 constexpr bool kLanePathBuilt = true;
@@ -52,19 +66,6 @@ inline int lane_forward_group(const Splat* const* splats, const float* const* co
   st.live = unsigned(_mm256_movemask_ps(live));
   return pairs;
 }
-
-// One group's per-pixel inputs to the lane backward (8 pixels each).
-struct LaneGroupGrads {
-  const float* d_colour;  // [C][8] dL/dpixel, channel-major
-  const float* dd;        // dL/d depth image
-  const float* tf;        // final transmittance
-  const float* dtf;       // dL/d final transmittance
-  const double* total;    // sum over the pixel's pairs of g w, plus the background term
-  double* prefix;         // running sum of g w over the pairs so far, advanced in place
-};
-
-// Lane partial sums of dL/dcolour: [chunk Gaussian][channel][lane].
-using ColourLanes = float[kLaneChannels][8];
 
 // The replay of lane_forward_group with every gradient of its pairs, as
 // group_pair_grads (pair_grads.h) computes them from the row path's tables,

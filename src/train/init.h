@@ -48,9 +48,10 @@ model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions&
 // core::whitened_signal_rank, when the scene has at least
 // subspace_from_bands bands, else per band) from the PCA of up to 8
 // training views' pixels (io::sample_spectra). Throws naming the scene when
-// the rank is above its band count.
+// the rank is above its band count. resuming: the checkpoint replaces the
+// basis and mean (only the shape is used), and the log says so.
 model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank,
-                                        int subspace_from_bands = 0);
+                                        int subspace_from_bands = 0, bool resuming = false);
 
 // 3DGS's scene extent: 1.1 x the largest distance of a camera centre from
 // their mean (scene units). Scales position learning rates and densification.

@@ -135,8 +135,8 @@ void Trainer::load_scene() {
 }
 
 void Trainer::build_modules() {
-  colour_ =
-      initial_colour_model(*scene_, config_.model.spectral_rank, config_.model.subspace_from_bands);
+  colour_ = initial_colour_model(*scene_, config_.model.spectral_rank,
+                                 config_.model.subspace_from_bands, resuming_);
   if (colour_.latent()) {
     colour_module_ = std::make_shared<torch::nn::Module>();
     colour_.basis = colour_module_->register_parameter("basis", colour_.basis.clone());
@@ -292,6 +292,7 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
   if (iterations > 0) config["iterations"] = iterations;
   std::unique_ptr<Trainer> t(new Trainer(parse_run_config(config, run.config().string()), run));
   t->writer_ = std::move(writer);
+  t->resuming_ = true;
   t->load_scene();
   model::AdamOptions options;
   options.eps = t->config_.optim.adam_eps;

@@ -184,6 +184,7 @@ class Trainer {
   nlohmann::json denoiser_validation_;              // null until validate_denoiser()
   nlohmann::json denoiser_pairs_psnr_;              // mean dB of the pairs; null until made
   bool distilling_ = false;                         // whether to distil is decided
+  bool resuming_ = false;                           // made by resume(): the checkpoint's state
   // An auxiliary model of pair_renders(): quiet about the scene; its training
   // views leave held_out_ out, and its training cameras are turned so that
   // their images move by perturb_px_ pixels.

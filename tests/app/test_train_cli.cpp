@@ -221,6 +221,11 @@ TEST(TrainCli, LatentColourModelTrainsResumesAndItsPlyRendersAsTrained) {
   copy_back_to(straight, 100, split);
   ASSERT_EQ(train("--resume " + split.string(), &out), 0) << out;
   EXPECT_EQ(io::read_file(split / "gaussians.ply"), ply);
+  // The log says where the basis comes from: the checkpoint, not a new PCA.
+  EXPECT_NE(out.find("3 latent channels for 8 bands (basis and mean from the checkpoint)"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(out.find("principal components"), std::string::npos) << out;
 
   // `ddhgs eval` renders the PLY alone and measures what the trainer did.
   ASSERT_EQ(test::run_command(test::ddhgs_binary() + " eval " + straight.string(), &out), 0) << out;
