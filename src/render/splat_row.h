@@ -1,7 +1,8 @@
 // A group of 8 pixels of a row blended with a list of splats: the scalar
 // heart of blending (power, exp, alpha, the 1/255 test, the transmittance
-// step), vectorised over pixels. Internal to the render layer; forward and backward
-// share it, so the backward replays the forward's decisions bit for bit.
+// step, pair_step), vectorised over pixels. Internal to the render layer;
+// every blender path, forward and backward, takes its decisions from it, so a
+// backward replays its forward's decisions bit for bit.
 #pragma once
 #include <cmath>
 #include <cstdint>
