@@ -163,19 +163,46 @@ float group_y(const TileScratch& s, int gr) {
   return float(s.y0 + gr / kGroupsPerRow) + 0.5f;
 }
 
-// The row path's per-pixel recurrence for one chunk of depth ranks: the
-// chunk's members (chunk_members), then each group runs through its splats
-// in depth order (blend_group). One function for forward and backward, so
-// the backward replays exactly the same float operations.
-void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int m, int remaining,
-                 int np, bool backward, float* grad_rows = nullptr) {
-  if (backward) std::memset(s.gmask, 0, sizeof s.gmask);
+// A chunk of a tile's depth list: its ranks and, from chunk_members, its
+// splats and the groups they may reach.
+struct Chunk {
+  const int32_t* ranks;  // [m] depth ranks
+  int m;
   uint64_t members[kGroups];
   const Splat* splats[kChunk];
-  chunk_members(s, ranked, ranks, m, remaining, np, grad_rows, members, splats);
+};
+
+// Calls f(chunk) for each chunk of the (started) tile's depth list, front to
+// back, until every pixel of the tile has stopped. grad_rows as in
+// chunk_members.
+template <class F>
+void each_chunk(TileScratch& s, const Ranked& ranked, const TileBins& bins, int tile, int np,
+                const float* grad_rows, F&& f) {
+  const int32_t end = bins.offsets[tile + 1];
+  for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
+    Chunk c;
+    c.ranks = bins.ranks.data() + b;
+    c.m = std::min<int32_t>(kChunk, end - b);
+    chunk_members(s, ranked, c.ranks, c.m, end - b, np, grad_rows, c.members, c.splats);
+    f(c);
+  }
+}
+
+// Updates the tile's stopped-pixel count and live lanes of group gr after a
+// pass over it left st.
+void book_group(TileScratch& s, int gr, const GroupState& st) {
+  s.ndone += __builtin_popcount(s.live[gr] & ~st.live);
+  s.live[gr] = uint8_t(st.live);
+}
+
+// The row path's per-pixel recurrence for one chunk: each group runs through
+// its splats in depth order (blend_group). One function for forward and
+// backward, so the backward replays exactly the same float operations.
+void blend_chunk(TileScratch& s, const Chunk& c, bool backward) {
+  if (backward) std::memset(s.gmask, 0, sizeof s.gmask);
   for (int gr = 0; gr < kGroups; ++gr) {
     const int p = gr * kRowLanes;
-    if (members[gr] == 0 || s.live[gr] == 0) {
+    if (c.members[gr] == 0 || s.live[gr] == 0) {
       std::fill(s.pmask + p, s.pmask + p + kRowLanes, uint64_t(0));
       continue;
     }
@@ -188,9 +215,8 @@ void blend_chunk(TileScratch& s, const Ranked& ranked, const int32_t* ranks, int
                          kPixels / 64,
                          p / 64,
                          p % 64};
-    blend_group(splats, members[gr], group_x(s, gr), group_y(s, gr), st, out);
-    s.ndone += __builtin_popcount(s.live[gr] & ~st.live);
-    s.live[gr] = uint8_t(st.live);
+    blend_group(c.splats, c.members[gr], group_x(s, gr), group_y(s, gr), st, out);
+    book_group(s, gr, st);
   }
 }
 
@@ -218,24 +244,17 @@ int64_t lane_forward_tile(TileScratch& s, const Ranked& ranked, const TileBins& 
   std::fill(s.lanes, s.lanes + kGroups * C * kRowLanes, 0.0f);
   std::fill(s.lane_depth, s.lane_depth + kPixels, 0.0f);
   int64_t pairs = 0;
-  const int32_t end = bins.offsets[tile + 1];
-  for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
-    const int32_t* ranks = bins.ranks.data() + b;
-    const int m = std::min<int32_t>(kChunk, end - b);
-    uint64_t members[kGroups];
-    const Splat* splats[kChunk];
-    chunk_members(s, ranked, ranks, m, end - b, np, nullptr, members, splats);
+  each_chunk(s, ranked, bins, tile, np, nullptr, [&](const Chunk& c) {
     for (int gr = 0; gr < kGroups; ++gr) {
-      if (members[gr] == 0 || s.live[gr] == 0) continue;
+      if (c.members[gr] == 0 || s.live[gr] == 0) continue;
       const int p = gr * kRowLanes;
       GroupState st{s.T + p, s.live[gr], nullptr};
       pairs +=
-          lane_forward_group<C>(splats, s.col_rows, members[gr], group_x(s, gr), group_y(s, gr), st,
-                                s.lanes + gr * C * kRowLanes, s.lane_depth + p);
-      s.ndone += __builtin_popcount(s.live[gr] & ~st.live);
-      s.live[gr] = uint8_t(st.live);
+          lane_forward_group<C>(c.splats, s.col_rows, c.members[gr], group_x(s, gr), group_y(s, gr),
+                                st, s.lanes + gr * C * kRowLanes, s.lane_depth + p);
+      book_group(s, gr, st);
     }
-  }
+  });
   return pairs;
 }
 
@@ -246,36 +265,29 @@ template <int C>
 void lane_backward_tile(TileScratch& s, const Ranked& ranked, const TileBins& bins, int tile,
                         int np, const float* dd, const float* tf, const float* dtf,
                         const double* total, double* prefix, float* gcol, float* ggeo) {
-  const int32_t end = bins.offsets[tile + 1];
-  for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
-    const int32_t* ranks = bins.ranks.data() + b;
-    const int m = std::min<int32_t>(kChunk, end - b);
-    uint64_t members[kGroups];
-    const Splat* splats[kChunk];
-    chunk_members(s, ranked, ranks, m, end - b, np, gcol, members, splats);
-    std::memset(s.geo, 0, sizeof(SlotLanes) * size_t(m));
-    std::memset(s.colour_lanes, 0, sizeof(ColourLanes) * size_t(m));
+  each_chunk(s, ranked, bins, tile, np, gcol, [&](const Chunk& c) {
+    std::memset(s.geo, 0, sizeof(SlotLanes) * size_t(c.m));
+    std::memset(s.colour_lanes, 0, sizeof(ColourLanes) * size_t(c.m));
     for (int gr = 0; gr < kGroups; ++gr) {
-      if (members[gr] == 0 || s.live[gr] == 0) continue;
+      if (c.members[gr] == 0 || s.live[gr] == 0) continue;
       const int p = gr * kRowLanes;
       GroupState st{s.T + p, s.live[gr], nullptr};
       const LaneGroupGrads in{
           s.lanes + gr * C * kRowLanes, dd + p, tf + p, dtf + p, total + p, prefix + p};
-      lane_backward_group<C>(splats, s.col_rows, members[gr], group_x(s, gr), group_y(s, gr), st,
-                             in, s.geo, s.colour_lanes);
-      s.ndone += __builtin_popcount(s.live[gr] & ~st.live);
-      s.live[gr] = uint8_t(st.live);
+      lane_backward_group<C>(c.splats, s.col_rows, c.members[gr], group_x(s, gr), group_y(s, gr),
+                             st, in, s.geo, s.colour_lanes);
+      book_group(s, gr, st);
     }
-    for (int k = 0; k < m; ++k) {
-      add_geo(s, ranked, ranks, k, ggeo);
-      float* row = gcol + int64_t(ranks[k]) * np;
-      for (int c = 0; c < C; ++c) {
+    for (int k = 0; k < c.m; ++k) {
+      add_geo(s, ranked, c.ranks, k, ggeo);
+      float* row = gcol + int64_t(c.ranks[k]) * np;
+      for (int ch = 0; ch < C; ++ch) {
         float sum = 0;
-        for (int i = 0; i < kRowLanes; ++i) sum += s.colour_lanes[k][c][i];
-        row[c] += sum;
+        for (int i = 0; i < kRowLanes; ++i) sum += s.colour_lanes[k][ch][i];
+        row[ch] += sum;
       }
     }
-  }
+  });
 }
 #endif
 
@@ -429,11 +441,8 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
         }
 #endif
         float dsum[kPixels] = {};
-        const int32_t end = bins.offsets[tile + 1];
-        for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
-          const int32_t* ranks = bins.ranks.data() + b;
-          const int m = std::min<int32_t>(kChunk, end - b);
-          blend_chunk(s, ranked, ranks, m, end - b, np, false);
+        each_chunk(s, ranked, bins, tile, np, nullptr, [&](const Chunk& c) {
+          blend_chunk(s, c, false);
           for (int p = 0; p < kPixels; ++p) {
             const uint64_t bits = s.pmask[p];
             if (bits == 0) continue;
@@ -449,7 +458,7 @@ BlendForward blend_forward(const Projected& projected, const torch::Tensor& colo
             s.touched[p] = 1;
             dsum[p] += depth_sum(bits, s.weight + p, s.depth);
           }
-        }
+        });
         for (int y = s.y0; y < s.y1; ++y)
           for (int x = s.x0; x < s.x1; ++x) {
             const int p = s.pixel(x, y);
@@ -549,17 +558,14 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
           continue;
         }
 #endif
-        const int32_t end = bins.offsets[tile + 1];
-        for (int32_t b = bins.offsets[tile]; b < end && s.ndone < s.npix; b += kChunk) {
-          const int32_t* ranks = bins.ranks.data() + b;
-          const int m = std::min<int32_t>(kChunk, end - b);
-          blend_chunk(s, ranked, ranks, m, end - b, np, true, gcol);
+        each_chunk(s, ranked, bins, tile, np, gcol, [&](const Chunk& c) {
+          blend_chunk(s, c, true);
 #if defined(__AVX512F__)
           if (use_wide)
-            wide_colour_terms(s, ranks, m, np, gcol);
+            wide_colour_terms(s, c.ranks, c.m, np, gcol);
           else
 #endif
-            colour_terms(s, ranks, m, np, gcol);
+            colour_terms(s, c.ranks, c.m, np, gcol);
           uint64_t group_members[kGroups];
           for (int gr = 0; gr < kGroups; ++gr) {
             uint64_t members = 0;
@@ -567,9 +573,7 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
             group_members[gr] = members;
           }
           // The geometry gradients, one 8-pixel group at a time.
-          std::memset(s.geo, 0, sizeof(SlotLanes) * size_t(m));
-          const Splat* splats[kChunk];
-          for (int k = 0; k < m; ++k) splats[k] = &ranked.splats[ranks[k]];
+          std::memset(s.geo, 0, sizeof(SlotLanes) * size_t(c.m));
           for (int gr = 0; gr < kGroups; ++gr) {
             const int p = gr * kRowLanes;
             if (group_members[gr] == 0) continue;
@@ -577,10 +581,10 @@ BlendGrads blend_backward(const Projected& projected, const torch::Tensor& color
                                 kPixels,      &s.gmask[0][0], kPixels / 64,   p / 64,
                                 p % 64,       dd + p,         tf + p,         dtf + p,
                                 total + p,    prefix + p,     group_x(s, gr), group_y(s, gr)};
-            group_pair_grads(splats, group_members[gr], in, s.geo);
+            group_pair_grads(c.splats, group_members[gr], in, s.geo);
           }
-          for (int k = 0; k < m; ++k) add_geo(s, ranked, ranks, k, ggeo);
-        }
+          for (int k = 0; k < c.m; ++k) add_geo(s, ranked, c.ranks, k, ggeo);
+        });
       }
     }
   });

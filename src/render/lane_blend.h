@@ -67,9 +67,9 @@ inline int lane_forward_group(const Splat* const* splats, const float* const* co
   return pairs;
 }
 
-// The replay of lane_forward_group with every gradient of its pairs, as
-// group_pair_grads (pair_grads.h) computes them from the row path's tables,
-// with colour . dL/dpixel from the lanes: adds to geo[k] and to
+// The replay of lane_forward_group with every gradient of its pairs
+// (add_pair_grads, as the row path's group_pair_grads), with colour .
+// dL/dpixel from the lanes: adds to geo[k] and to
 // colour_lanes[k] (w dL/dpixel) for each chunk Gaussian k that blends a
 // pixel of the group.
 template <int C>
@@ -80,19 +80,14 @@ inline void lane_backward_group(const Splat* const* splats, const float* const* 
   const __m256 xs = group_xs(px0);
   __m256 t = _mm256_load_ps(st.T);
   __m256 live = lane_mask(st.live);
-  const __m256 dd = _mm256_load_ps(in.dd);
-  const __m256 tail = _mm256_mul_ps(_mm256_load_ps(in.dtf), _mm256_load_ps(in.tf));
-  const __m256d total_lo = _mm256_load_pd(in.total), total_hi = _mm256_load_pd(in.total + 4);
-  __m256d prefix_lo = _mm256_load_pd(in.prefix), prefix_hi = _mm256_load_pd(in.prefix + 4);
-  const __m256 one = _mm256_set1_ps(1.0f), max_alpha = _mm256_set1_ps(kMaxAlpha);
+  GroupSums sums = load_group_sums(in.dd, in.tf, in.dtf, in.total, in.prefix);
   for (; members; members &= members - 1) {
     const int k = __builtin_ctzll(members);
     const Splat& sp = *splats[k];
     const PairStep p = pair_step(sp, xs, py, t, live);
-    const __m256 on = p.blend;
-    if (_mm256_movemask_ps(on) != 0) {
+    if (_mm256_movemask_ps(p.blend) != 0) {
       const float* colour = colours[k];
-      const __m256 won = _mm256_and_ps(on, p.weight);
+      const __m256 won = _mm256_and_ps(p.blend, p.weight);
       __m256 gdot = _mm256_setzero_ps();
       for (int c = 0; c < C; ++c) {
         const __m256 d = _mm256_load_ps(in.d_colour + 8 * c);
@@ -100,45 +95,12 @@ inline void lane_backward_group(const Splat* const* splats, const float* const* 
         float* lanes = colour_lanes[k][c];
         _mm256_store_ps(lanes, _mm256_fmadd_ps(won, d, _mm256_load_ps(lanes)));
       }
-      const __m256 w = p.weight;
-      const __m256 g = _mm256_and_ps(on, _mm256_fmadd_ps(_mm256_set1_ps(sp.depth), dd, gdot));
-      float* slots = &geo[k][0][0];
-      auto add = [&](int slot, __m256 v) {
-        float* dst = slots + slot * kRowLanes;
-        _mm256_store_ps(dst, _mm256_add_ps(_mm256_load_ps(dst), v));
-      };
-      add(kDepth, _mm256_and_ps(on, _mm256_mul_ps(w, dd)));
-      prefix_lo = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(g)),
-                                  _mm256_cvtps_pd(_mm256_castps256_ps128(w)), prefix_lo);
-      prefix_hi = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm256_extractf128_ps(g, 1)),
-                                  _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1)), prefix_hi);
-      const __m256 suffix = _mm256_set_m128(_mm256_cvtpd_ps(_mm256_sub_pd(total_hi, prefix_hi)),
-                                            _mm256_cvtpd_ps(_mm256_sub_pd(total_lo, prefix_lo)));
-      const __m256 alpha = _mm256_min_ps(p.raw, max_alpha);
-      const __m256 d_alpha =
-          _mm256_sub_ps(_mm256_mul_ps(t, g),
-                        _mm256_div_ps(_mm256_add_ps(suffix, tail), _mm256_sub_ps(one, alpha)));
-      // Clamped pairs (raw > 0.99) pass no gradient to the opacity or power.
-      const __m256 open = _mm256_and_ps(on, _mm256_cmp_ps(p.raw, max_alpha, _CMP_NGT_UQ));
-      const __m256 d_alpha_raw = _mm256_and_ps(open, _mm256_mul_ps(d_alpha, p.raw));
-      const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(sp.mx), xs);
-      const __m256 dy = _mm256_set1_ps(sp.my - py);
-      const __m256 d_power = _mm256_sub_ps(_mm256_setzero_ps(), d_alpha_raw);
-      add(kOpacity, d_alpha_raw);
-      add(kMx, _mm256_mul_ps(d_power, _mm256_fmadd_ps(_mm256_set1_ps(sp.a), dx,
-                                                      _mm256_mul_ps(_mm256_set1_ps(sp.b), dy))));
-      add(kMy, _mm256_mul_ps(d_power, _mm256_fmadd_ps(_mm256_set1_ps(sp.b), dx,
-                                                      _mm256_mul_ps(_mm256_set1_ps(sp.c), dy))));
-      const __m256 half_power = _mm256_mul_ps(_mm256_set1_ps(0.5f), d_power);
-      add(kConA, _mm256_mul_ps(_mm256_mul_ps(half_power, dx), dx));
-      add(kConB, _mm256_mul_ps(_mm256_mul_ps(d_power, dx), dy));
-      add(kConC, _mm256_mul_ps(_mm256_mul_ps(half_power, dy), dy));
+      add_pair_grads(sp, p.blend, p.weight, p.raw, t, gdot, xs, py, sums, &geo[k][0][0]);
     }
     advance(p, t, live);
     if (_mm256_movemask_ps(live) == 0) break;
   }
-  _mm256_store_pd(in.prefix, prefix_lo);
-  _mm256_store_pd(in.prefix + 4, prefix_hi);
+  store_prefix(sums, in.prefix);
   _mm256_store_ps(st.T, t);
   st.live = unsigned(_mm256_movemask_ps(live));
 }

@@ -47,63 +47,83 @@ inline void group_pair_grads(const Splat* const* splats, uint64_t members, const
                              SlotLanes* geo);
 
 #if defined(__AVX2__) && defined(__FMA__)
+// A group's per-pixel values as its pair loop holds them in registers:
+// dL/dD, dL/dT_final * T_final, the totals and the running prefix.
+struct GroupSums {
+  __m256 dd, tail;
+  __m256d total_lo, total_hi, prefix_lo, prefix_hi;
+};
+
+inline GroupSums load_group_sums(const float* dd, const float* tf, const float* dtf,
+                                 const double* total, const double* prefix) {
+  return {_mm256_loadu_ps(dd),     _mm256_mul_ps(_mm256_loadu_ps(dtf), _mm256_loadu_ps(tf)),
+          _mm256_loadu_pd(total),  _mm256_loadu_pd(total + 4),
+          _mm256_loadu_pd(prefix), _mm256_loadu_pd(prefix + 4)};
+}
+
+inline void store_prefix(const GroupSums& s, double* prefix) {
+  _mm256_storeu_pd(prefix, s.prefix_lo);
+  _mm256_storeu_pd(prefix + 4, s.prefix_hi);
+}
+
+// One pair's gradients (the formula above) for the group's lanes: on, the
+// lanes where it blends; w = alpha T, raw and t (T before it) from its
+// pair_step; gdot = colour . dL/dpixel. Adds to slots (the Gaussian's
+// SlotLanes) and advances the prefix. The row path's group_pair_grads and
+// the lane path's lane_backward_group share it.
+inline void add_pair_grads(const Splat& sp, __m256 on, __m256 w, __m256 raw, __m256 t, __m256 gdot,
+                           __m256 xs, float py, GroupSums& s, float* slots) {
+  const __m256 one = _mm256_set1_ps(1.0f), max_alpha = _mm256_set1_ps(kMaxAlpha);
+  // Pixels the pair does not blend get g = 0: nothing reaches the prefix.
+  const __m256 g = _mm256_and_ps(on, _mm256_fmadd_ps(_mm256_set1_ps(sp.depth), s.dd, gdot));
+  auto add = [&](int slot, __m256 v) {
+    float* dst = slots + slot * kRowLanes;
+    _mm256_store_ps(dst, _mm256_add_ps(_mm256_load_ps(dst), v));
+  };
+  add(kDepth, _mm256_and_ps(on, _mm256_mul_ps(w, s.dd)));
+  s.prefix_lo = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(g)),
+                                _mm256_cvtps_pd(_mm256_castps256_ps128(w)), s.prefix_lo);
+  s.prefix_hi = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm256_extractf128_ps(g, 1)),
+                                _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1)), s.prefix_hi);
+  const __m256 suffix = _mm256_set_m128(_mm256_cvtpd_ps(_mm256_sub_pd(s.total_hi, s.prefix_hi)),
+                                        _mm256_cvtpd_ps(_mm256_sub_pd(s.total_lo, s.prefix_lo)));
+  const __m256 alpha = _mm256_min_ps(raw, max_alpha);
+  const __m256 d_alpha = _mm256_sub_ps(
+      _mm256_mul_ps(t, g), _mm256_div_ps(_mm256_add_ps(suffix, s.tail), _mm256_sub_ps(one, alpha)));
+  // Clamped pairs (raw > 0.99) pass no gradient to the opacity or power.
+  const __m256 open = _mm256_and_ps(on, _mm256_cmp_ps(raw, max_alpha, _CMP_NGT_UQ));
+  const __m256 d_alpha_raw = _mm256_and_ps(open, _mm256_mul_ps(d_alpha, raw));
+  const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(sp.mx), xs);
+  const __m256 dy = _mm256_set1_ps(sp.my - py);
+  const __m256 d_power = _mm256_sub_ps(_mm256_setzero_ps(), d_alpha_raw);
+  add(kOpacity, d_alpha_raw);
+  add(kMx, _mm256_mul_ps(d_power, _mm256_fmadd_ps(_mm256_set1_ps(sp.a), dx,
+                                                  _mm256_mul_ps(_mm256_set1_ps(sp.b), dy))));
+  add(kMy, _mm256_mul_ps(d_power, _mm256_fmadd_ps(_mm256_set1_ps(sp.b), dx,
+                                                  _mm256_mul_ps(_mm256_set1_ps(sp.c), dy))));
+  const __m256 half_power = _mm256_mul_ps(_mm256_set1_ps(0.5f), d_power);
+  add(kConA, _mm256_mul_ps(_mm256_mul_ps(half_power, dx), dx));
+  add(kConB, _mm256_mul_ps(_mm256_mul_ps(d_power, dx), dy));
+  add(kConC, _mm256_mul_ps(_mm256_mul_ps(half_power, dy), dy));
+}
+
 inline void group_pair_grads(const Splat* const* splats, uint64_t members, const GroupPairs& in,
                              SlotLanes* geo) {
   const __m256i lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-  const __m256 xs = _mm256_add_ps(_mm256_set1_ps(in.px0), _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
-  const __m256 dd = _mm256_loadu_ps(in.dd);
-  const __m256 tail = _mm256_mul_ps(_mm256_loadu_ps(in.dtf), _mm256_loadu_ps(in.tf));
-  const __m256d total_lo = _mm256_loadu_pd(in.total), total_hi = _mm256_loadu_pd(in.total + 4);
-  __m256d prefix_lo = _mm256_loadu_pd(in.prefix), prefix_hi = _mm256_loadu_pd(in.prefix + 4);
-  const __m256 one = _mm256_set1_ps(1.0f), max_alpha = _mm256_set1_ps(kMaxAlpha);
-  const __m256 half = _mm256_set1_ps(0.5f);
+  const __m256 xs = group_xs(in.px0);
+  GroupSums sums = load_group_sums(in.dd, in.tf, in.dtf, in.total, in.prefix);
   for (; members; members &= members - 1) {
     const int k = __builtin_ctzll(members);
     const unsigned lanes = unsigned(in.gmask[k * in.words + in.word] >> in.shift) & 0xffu;
     if (lanes == 0) continue;
     const __m256 on = _mm256_castsi256_ps(
         _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(int(lanes)), lane_bit), lane_bit));
-    const Splat& sp = *splats[k];
     const size_t at = size_t(k) * in.stride;
-    const __m256 w = _mm256_load_ps(in.weight + at);
-    const __m256 raw = _mm256_load_ps(in.raw + at);
-    const __m256 t = _mm256_load_ps(in.trans + at);
-    // Pixels the pair does not blend get g = 0: nothing reaches the prefix.
-    const __m256 g = _mm256_and_ps(
-        on, _mm256_fmadd_ps(_mm256_set1_ps(sp.depth), dd, _mm256_load_ps(in.gdot + at)));
-    float* slots = &geo[k][0][0];
-    auto add = [&](int slot, __m256 v) {
-      float* dst = slots + slot * kRowLanes;
-      _mm256_store_ps(dst, _mm256_add_ps(_mm256_load_ps(dst), v));
-    };
-    add(kDepth, _mm256_and_ps(on, _mm256_mul_ps(w, dd)));
-    prefix_lo = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(g)),
-                                _mm256_cvtps_pd(_mm256_castps256_ps128(w)), prefix_lo);
-    prefix_hi = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm256_extractf128_ps(g, 1)),
-                                _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1)), prefix_hi);
-    const __m256 suffix = _mm256_set_m128(_mm256_cvtpd_ps(_mm256_sub_pd(total_hi, prefix_hi)),
-                                          _mm256_cvtpd_ps(_mm256_sub_pd(total_lo, prefix_lo)));
-    const __m256 alpha = _mm256_min_ps(raw, max_alpha);
-    const __m256 d_alpha = _mm256_sub_ps(
-        _mm256_mul_ps(t, g), _mm256_div_ps(_mm256_add_ps(suffix, tail), _mm256_sub_ps(one, alpha)));
-    // Clamped pairs (raw > 0.99) pass no gradient to the opacity or power.
-    const __m256 open = _mm256_and_ps(on, _mm256_cmp_ps(raw, max_alpha, _CMP_NGT_UQ));
-    const __m256 d_alpha_raw = _mm256_and_ps(open, _mm256_mul_ps(d_alpha, raw));
-    const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(sp.mx), xs);
-    const __m256 dy = _mm256_set1_ps(sp.my - in.py);
-    const __m256 d_power = _mm256_sub_ps(_mm256_setzero_ps(), d_alpha_raw);
-    add(kOpacity, d_alpha_raw);
-    add(kMx, _mm256_mul_ps(d_power, _mm256_fmadd_ps(_mm256_set1_ps(sp.a), dx,
-                                                    _mm256_mul_ps(_mm256_set1_ps(sp.b), dy))));
-    add(kMy, _mm256_mul_ps(d_power, _mm256_fmadd_ps(_mm256_set1_ps(sp.b), dx,
-                                                    _mm256_mul_ps(_mm256_set1_ps(sp.c), dy))));
-    const __m256 half_power = _mm256_mul_ps(half, d_power);
-    add(kConA, _mm256_mul_ps(_mm256_mul_ps(half_power, dx), dx));
-    add(kConB, _mm256_mul_ps(_mm256_mul_ps(d_power, dx), dy));
-    add(kConC, _mm256_mul_ps(_mm256_mul_ps(half_power, dy), dy));
+    add_pair_grads(*splats[k], on, _mm256_load_ps(in.weight + at), _mm256_load_ps(in.raw + at),
+                   _mm256_load_ps(in.trans + at), _mm256_load_ps(in.gdot + at), xs, in.py, sums,
+                   &geo[k][0][0]);
   }
-  _mm256_storeu_pd(in.prefix, prefix_lo);
-  _mm256_storeu_pd(in.prefix + 4, prefix_hi);
+  store_prefix(sums, in.prefix);
 }
 #else
 inline void group_pair_grads(const Splat* const* splats, uint64_t members, const GroupPairs& in,

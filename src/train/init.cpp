@@ -302,15 +302,14 @@ model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_ran
   if (k < 0) {
     k = std::clamp<int64_t>(core::whitened_signal_rank(sample.spectra, sample.noise_sigma), 1, n);
   }
-  if (resuming)
-    core::log_info("colour model: " + std::to_string(k) + " latent channels for " +
-                   std::to_string(n) + " bands (basis and mean from the checkpoint)");
-  else
-    core::log_info("colour model: " + std::to_string(k) + " latent channels for " +
-                   std::to_string(n) + " bands (a basis from the principal components of " +
-                   std::to_string(sample.spectra.size(0)) + " pixels of " +
-                   std::to_string(sample.views) + " training views, holding " +
-                   percent(pca.kept(k)) + " % of their variance)");
+  const std::string source = resuming
+                                 ? "basis and mean from the checkpoint"
+                                 : "a basis from the principal components of " +
+                                       std::to_string(sample.spectra.size(0)) + " pixels of " +
+                                       std::to_string(sample.views) + " training views, holding " +
+                                       percent(pca.kept(k)) + " % of their variance";
+  core::log_info("colour model: " + std::to_string(k) + " latent channels for " +
+                 std::to_string(n) + " bands (" + source + ")");
   return model::latent_from_pca(pca, k);
 }
 
