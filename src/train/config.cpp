@@ -201,6 +201,8 @@ constexpr AddedKey kAddedKeys[] = {
     {"loss.view_fraction", "1"},
     {"loss.view_fraction_until_fraction", "1"},
     {"loss.view_fraction_from_pixels", "0"},  // every view was cropped at view_fraction
+    {"optim.lr_decay_from_fraction", "0.9"},  // rates were constant
+    {"optim.lr_final_scale", "1"},
 };
 
 // The one section added whole since format_version 2 began.

@@ -65,6 +65,8 @@ constexpr Range kRanges[] = {
     {"optim.background_lr", 0, kMaxRate, false},
     {"optim.basis_lr", 0, kMaxRate, false},
     {"optim.latent_sh_lr_scale", 0, 1e6, false},
+    {"optim.lr_decay_from_fraction", 0, 1, false},
+    {"optim.lr_final_scale", 0, 1, true},
     {"loss.l1", 0, kMaxWeight, false},
     {"loss.dssim", 0, kMaxWeight, false},
     {"loss.spectral", 0, kMaxWeight, false},

@@ -78,6 +78,8 @@ OptimConfig parse_optim(const json& o, const std::string& source) {
   c.background_lr = read<double>(o, "optim", "background_lr", source);
   c.basis_lr = read<double>(o, "optim", "basis_lr", source);
   c.latent_sh_lr_scale = read<double>(o, "optim", "latent_sh_lr_scale", source);
+  c.lr_decay_from_fraction = read<double>(o, "optim", "lr_decay_from_fraction", source);
+  c.lr_final_scale = read<double>(o, "optim", "lr_final_scale", source);
   return c;
 }
 

@@ -57,6 +57,11 @@ struct OptimConfig {
   double opacity_lr = 0, scaling_lr = 0, rotation_lr = 0;
   double adam_eps = 1e-15;
   double background_lr = 0;
+  // Every rate above but the positions' (which decay on their own schedule)
+  // falls log-linearly from lr_decay_from_fraction of the run to
+  // lr_final_scale times its value at the last iteration; 1: constant.
+  double lr_decay_from_fraction = 0.9;
+  double lr_final_scale = 1;
 };
 
 struct LossConfig {

@@ -26,6 +26,7 @@ Schedule schedule_of(const RunConfig& config) {
   const DensifyConfig& densify = config.densify;
   s.sh_degree_every = interval(config.model.sh_degree_every_fraction, s.iterations);
   s.means_lr_decay_steps = interval(config.optim.means_lr_decay_fraction, s.iterations);
+  s.lr_decay_from = of_run(config.optim.lr_decay_from_fraction, s.iterations);
   s.densify_from = of_run(densify.from_fraction, s.iterations);
   s.densify_until = of_run(densify.until_fraction, s.iterations);
   s.densify_every = densify.every;

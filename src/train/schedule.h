@@ -1,6 +1,6 @@
 // When things happen during training, in iteration numbers. Presets give the
 // schedule as fractions of `iterations` (model.sh_degree_every_fraction,
-// optim.means_lr_decay_fraction, densify.from_fraction, until_fraction,
+// optim.means_lr_decay_fraction, lr_decay_from_fraction, densify.from_fraction, until_fraction,
 // opacity_reset_every_fraction, loss.bands_per_step_until_fraction), so one
 // preset means the same run shape at 2,000 and at 30,000 iterations;
 // densify.every stays in iterations because it is the window over which
@@ -15,6 +15,7 @@ struct Schedule {
   int64_t iterations = 0;
   int64_t sh_degree_every = 0;       // raise the active SH degree every this many iterations
   int64_t means_lr_decay_steps = 0;  // position lr reaches means_lr_final here
+  int64_t lr_decay_from = 0;         // the other rates start to fall after this one
   int64_t densify_from = 0;          // densify after this iteration ...
   int64_t densify_until = 0;         // ... and before this one
   int64_t densify_every = 0;

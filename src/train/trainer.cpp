@@ -212,12 +212,25 @@ void Trainer::set_learning_rates(int64_t iteration) {
   state_.adam.group("means").lr =
       extent_ * model::exponential_lr(iteration, o.means_lr_init, o.means_lr_final,
                                       schedule_.means_lr_decay_steps);
-  state_.adam.group("log_scales").lr = o.scaling_lr;
-  state_.adam.group("quats").lr = o.rotation_lr;
-  state_.adam.group("logit_opacities").lr = o.opacity_lr;
-  const double sh_lr = o.sh_dc_lr * state_.gaussians.colour.sh_rate_scale(o.latent_sh_lr_scale);
+  // The other rates: constant, then log-linear down to lr_final_scale x.
+  const int64_t from = schedule_.lr_decay_from;
+  const double late = iteration <= from
+                          ? 1.0
+                          : model::exponential_lr(iteration - from, 1.0, o.lr_final_scale,
+                                                  schedule_.iterations - from);
+  state_.adam.group("log_scales").lr = late * o.scaling_lr;
+  state_.adam.group("quats").lr = late * o.rotation_lr;
+  state_.adam.group("logit_opacities").lr = late * o.opacity_lr;
+  const double sh_lr =
+      late * o.sh_dc_lr * state_.gaussians.colour.sh_rate_scale(o.latent_sh_lr_scale);
   state_.adam.group("sh_dc").lr = sh_lr;
   state_.adam.group("sh_rest").lr = sh_lr / o.sh_rest_lr_divisor;
+  // The colour model's basis and mean and the learned background fall with
+  // them; the other modules (encoder, cameras, denoiser) keep their rates.
+  for (const auto& m : state_.modules)
+    if (m.name == kColourModule || m.name == kBackgroundModule)
+      for (const auto& item : m.module->named_parameters())
+        state_.adam.group(m.name + "/" + item.key()).lr = late * m.lr;
   if (camera_refinement_)
     state_.adam.group("camera_refinement/translation").lr =
         config_.camera_refinement.translation_lr;

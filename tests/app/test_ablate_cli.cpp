@@ -89,10 +89,10 @@ TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
   // Trained to 30 (and fine-tuned), then continued to 60: back to the end of
   // iteration 30, then the same Gaussians and U-Net as straight through. The
   // schedule stretches with the run's length, so these runs keep it flat: no
-  // densification, SH degree 0, a constant position learning rate.
+  // densification, SH degree 0, constant learning rates.
   const std::string flat =
       train + " --set densify.until_fraction=0 --set model.sh_degree_every_fraction=0" +
-      " --set optim.means_lr_final=" +
+      " --set optim.lr_final_scale=1 --set optim.means_lr_final=" +
       read_json(straight / "config.json")["optim"]["means_lr_init"].dump();
   const fs::path flat_straight = runs / "flat_straight";
   ASSERT_EQ(ddhgs(flat + " --iterations 60 --out " + flat_straight.string(), &out), 0) << out;

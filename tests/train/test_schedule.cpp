@@ -38,6 +38,8 @@ TEST(Schedule, FractionsBecomeIterationNumbersOfTheRun) {
   EXPECT_EQ(s.bands_drawn_until, 600);
   EXPECT_TRUE(s.draws_bands(600));
   EXPECT_FALSE(s.draws_bands(601));
+  // The rates other than the positions' fall in the last tenth.
+  EXPECT_EQ(s.lr_decay_from, 810);
   // An interval that rounds to 0 still happens every iteration; a zero
   // fraction switches it off.
   c["iterations"] = 4;

@@ -76,6 +76,8 @@ nlohmann::json config_for(const fs::path& scene) {
   // iterations as in a full run, not over these 20.
   config["densify"]["opacity_reset_every_fraction"] = 0.0;
   config["optim"]["means_lr_decay_fraction"] = 1500.0;
+  // ... and so do the other rates: constant, as in the first half of a run.
+  config["optim"]["lr_final_scale"] = 1.0;
   // 3DGS's rate for the view-dependent coefficients: with the default
   // preset's five times faster one, Adam amplifies the float-level difference
   // between the twin loss paths past the loss tolerance by iteration 16
@@ -228,6 +230,53 @@ TEST(TrainerStep, TwentyIterationsMatchTheLibTorchLosses) {
     EXPECT_LT(diff.abs().mean().item<double>(), 0.01 * lr) << names[i];
     EXPECT_LT(diff.norm().item<double>(), 0.05 * (b[i] - start[i]).norm().item<double>())
         << names[i];
+  }
+}
+
+TEST(TrainerStep, RatesFallLogLinearlyFromTheDecayStartToTheFinalScale) {
+  const fs::path root = test::temp_dir("trainer_step_rates");
+  const fs::path scene = write_scene(root / "scene");
+  auto config = config_for(scene);
+  config["optim"]["lr_final_scale"] = 0.01;
+  config["optim"]["lr_decay_from_fraction"] = 0.5;  // iterations 11-20 fall
+  config["wavelength_encoder"]["enabled"] = true;
+  auto t = train::Trainer::start(config, {root / "run"}, false);
+  ASSERT_TRUE(t->state().gaussians.colour.latent());  // 17 bands: the subspace
+  const nlohmann::json& o = config["optim"];
+  const double sh = o["sh_dc_lr"].get<double>() * o["latent_sh_lr_scale"].get<double>();
+  const std::pair<const char*, double> falling[] = {
+      {"log_scales", o["scaling_lr"]},
+      {"quats", o["rotation_lr"]},
+      {"logit_opacities", o["opacity_lr"]},
+      {"sh_dc", sh},
+      {"sh_rest", sh / o["sh_rest_lr_divisor"].get<double>()},
+      {"colour_model/basis", o["basis_lr"]},
+      {"colour_model/mean", o["basis_lr"]},
+      {"background/value", o["background_lr"]}};
+  auto& adam = t->state().adam;
+  const double encoder_lr = config["wavelength_encoder"]["lr"].get<double>();
+  double means_before = 0;
+  for (int i = 1; i <= 20; ++i) {
+    t->advance();  // sets iteration i's rates, then steps
+    // 1 up to iteration 10, then 0.01^((i - 10) / 10): 0.01 at 20.
+    const double scale = i <= 10 ? 1.0 : std::pow(0.01, (i - 10) / 10.0);
+    for (const auto& [name, base] : falling)
+      EXPECT_NEAR(adam.group(name).lr, scale * base, 1e-9 * base) << name << ", iteration " << i;
+    // The encoder keeps its rate; the positions follow their own decay
+    // (1500 x 20 iterations here: they barely move).
+    int encoder_groups = 0;
+    for (const auto& item : adam.groups())
+      if (item.name.rfind("wavelength_encoder/", 0) == 0) {
+        EXPECT_EQ(item.lr, encoder_lr) << item.name;
+        ++encoder_groups;
+      }
+    EXPECT_GT(encoder_groups, 0);
+    const double means = adam.group("means").lr;
+    if (i > 1) {
+      EXPECT_LT(means, means_before);
+    }
+    EXPECT_GT(means, 0.99 * means_before);
+    means_before = means;
   }
 }
 
