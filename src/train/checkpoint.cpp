@@ -7,9 +7,22 @@ namespace ddhgs::train {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+std::string group_name(const TrainedModule& module, const std::string& parameter) {
+  return module.name + "/" + parameter;
+}
+
+}  // namespace
+
 void add_module_groups(model::Adam& adam, const TrainedModule& module) {
   for (const auto& item : module.module->named_parameters())
-    adam.add(module.name + "/" + item.key(), item.value(), module.lr);
+    adam.add(group_name(module, item.key()), item.value(), module.lr);
+}
+
+void scale_module_rate(model::Adam& adam, const TrainedModule& module, double scale) {
+  for (const auto& item : module.module->named_parameters())
+    adam.group(group_name(module, item.key())).lr = scale * module.lr;
 }
 
 void write_archive(const fs::path& path, torch::serialize::OutputArchive& archive) {

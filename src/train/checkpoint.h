@@ -49,6 +49,8 @@ struct TrainState {
 
 // Registers the module's parameters as Adam groups "<name>/<parameter>".
 void add_module_groups(model::Adam& adam, const TrainedModule& module);
+// Sets the learning rate of those groups to scale x module.lr.
+void scale_module_rate(model::Adam& adam, const TrainedModule& module, double scale);
 
 // A LibTorch archive written atomically, through a sink: LibTorch's own file
 // writer ends the process when the disk is full.

@@ -1,7 +1,8 @@
 // When things happen during training, in iteration numbers. Presets give the
 // schedule as fractions of `iterations` (model.sh_degree_every_fraction,
-// optim.means_lr_decay_fraction, lr_decay_from_fraction, densify.from_fraction, until_fraction,
-// opacity_reset_every_fraction, loss.bands_per_step_until_fraction), so one
+// optim.means_lr_decay_fraction, lr_decay_from_fraction,
+// densify.from_fraction, until_fraction, opacity_reset_every_fraction,
+// loss.bands_per_step_until_fraction), so one
 // preset means the same run shape at 2,000 and at 30,000 iterations;
 // densify.every stays in iterations because it is the window over which
 // view-space gradients are averaged, which depends on how many views it spans,

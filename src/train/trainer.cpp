@@ -229,8 +229,7 @@ void Trainer::set_learning_rates(int64_t iteration) {
   // them; the other modules (encoder, cameras, denoiser) keep their rates.
   for (const auto& m : state_.modules)
     if (m.name == kColourModule || m.name == kBackgroundModule)
-      for (const auto& item : m.module->named_parameters())
-        state_.adam.group(m.name + "/" + item.key()).lr = late * m.lr;
+      scale_module_rate(state_.adam, m, late);
   if (camera_refinement_)
     state_.adam.group("camera_refinement/translation").lr =
         config_.camera_refinement.translation_lr;

@@ -76,7 +76,7 @@ nlohmann::json config_for(const fs::path& scene) {
   // iterations as in a full run, not over these 20.
   config["densify"]["opacity_reset_every_fraction"] = 0.0;
   config["optim"]["means_lr_decay_fraction"] = 1500.0;
-  // ... and so do the other rates: constant, as in the first half of a run.
+  // ... and so do the other rates: constant, as before a run's last tenth.
   config["optim"]["lr_final_scale"] = 1.0;
   // 3DGS's rate for the view-dependent coefficients: with the default
   // preset's five times faster one, Adam amplifies the float-level difference
