@@ -3,10 +3,11 @@
 // Shared by the benchmarks that time decoding compressed views.
 #pragma once
 #include <tiffio.h>
-#include <torch/torch.h>
 
 #include <filesystem>
 #include <vector>
+
+#include "core/tensor.h"
 
 namespace ddhgs::bench {
 

@@ -2,7 +2,6 @@
 // resolved config, its dataset (loaded as it was for training) and its final
 // Gaussians, with the checks that they belong together.
 #pragma once
-#include <torch/torch.h>
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -11,6 +10,7 @@
 #include <optional>
 #include <string>
 
+#include "core/tensor.h"
 #include "io/ply/ply.h"
 #include "io/scene/scene.h"
 #include "model/diffusion.h"

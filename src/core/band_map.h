@@ -3,7 +3,7 @@
 // response functions would see. A colour model applies such a map after
 // decoding (model::ColourModel::mapped), so every model renders through it.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <string>
 #include <vector>

@@ -7,7 +7,7 @@
 // (all ones) has Y = 1, then XYZ -> linear sRGB (D65) -> clamp -> sRGB curve.
 // Bands outside 380-780 nm contribute nothing.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <array>
 #include <string>

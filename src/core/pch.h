@@ -1,6 +1,9 @@
 // Precompiled header shared by every target: LibTorch dominates compile time.
+// Only the tensor API (core/tensor.h): the whole of torch/torch.h made every
+// file pay about 5 s more to load it, though few use its modules,
+// optimisers or serialisation.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <algorithm>
 #include <array>

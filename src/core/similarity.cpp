@@ -1,7 +1,8 @@
 #include "core/similarity.h"
 
-#include <torch/torch.h>
+#include "core/tensor.h"
 
+#include <torch/linalg.h>
 #include <cmath>
 
 #include "core/error.h"

@@ -1,5 +1,6 @@
 #include "core/spectral_pca.h"
 
+#include <torch/linalg.h>
 #include <algorithm>
 
 #include "core/error.h"

@@ -4,7 +4,7 @@
 // the rank that keeps 99.9 % of the variance, and a subspace colour model
 // starts its band basis from these components (issue 30).
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <vector>
 

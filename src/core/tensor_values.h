@@ -1,6 +1,6 @@
 // A tensor's values as a plain vector, for JSON and text output.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <vector>
 

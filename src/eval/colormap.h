@@ -1,6 +1,6 @@
 // Colour maps for single-band pictures and error heatmaps.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <array>
 #include <string>

@@ -4,7 +4,6 @@
 // stored views and clean ground truth as for the raw render, and the time per
 // denoised frame (render + sampling).
 #pragma once
-#include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
@@ -12,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/tensor.h"
 #include "eval/evaluate.h"
 #include "model/diffusion.h"
 

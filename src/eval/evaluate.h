@@ -2,7 +2,7 @@
 // the stored (noisy) views and, when the scene has it, the clean ground
 // truth; render speed; metrics.json, per_view.csv and a printed table.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 #include <optional>

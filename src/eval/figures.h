@@ -2,7 +2,7 @@
 // a colour map, error heatmaps against ground truth, and side-by-side
 // comparisons (ground truth | render | error) as the paper's figures show.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <string>
 #include <vector>

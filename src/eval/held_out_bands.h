@@ -3,12 +3,12 @@
 // interpolation map (core/band_map.h), and measured per band against the
 // same scene loaded with every band: `ddhgs eval RUN --held-out-bands`.
 #pragma once
-#include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
 #include <string>
 #include <vector>
 
+#include "core/tensor.h"
 #include "io/scene/scene.h"
 #include "model/gaussians.h"
 

@@ -2,7 +2,7 @@
 // (supplementary notes, "Metrics as the field computes them"). All metrics
 // take channels-last images in [0, 1] (data range 1) and compute in double.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <optional>
 #include <vector>

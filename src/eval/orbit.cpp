@@ -1,7 +1,8 @@
 #include "eval/orbit.h"
 
-#include <torch/torch.h>
+#include "core/tensor.h"
 
+#include <torch/linalg.h>
 #include <algorithm>
 #include <cmath>
 

@@ -1,5 +1,6 @@
 #include "eval/pose_alignment.h"
 
+#include <torch/optim/adam.h>
 #include <cmath>
 
 #include "core/error.h"

@@ -17,7 +17,7 @@
 // Gaussians before the camera by p pixels. The result is kept only when it
 // lowers the L1 difference; otherwise the recorded pose stands.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include "core/camera.h"
 #include "model/gaussians.h"

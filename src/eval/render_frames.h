@@ -1,7 +1,7 @@
 // Renders a list of frames (dataset views or orbit cameras) to cubes and
 // pictures: the work behind `ddhgs render`.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 #include <functional>

@@ -3,13 +3,13 @@
 // curves, per-band quality, ground truth | render | error pictures and an
 // interactive spectral viewer. Opens from disk; needs no server or network.
 #pragma once
-#include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <string>
 #include <vector>
 
+#include "core/tensor.h"
 #include "io/scene/scene.h"
 #include "model/gaussians.h"
 

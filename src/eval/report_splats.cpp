@@ -1,5 +1,6 @@
 #include "eval/report_splats.h"
 
+#include <torch/linalg.h>
 #include <algorithm>
 #include <cctype>
 #include <cmath>

@@ -10,11 +10,11 @@
 // band values, so the page recolours every splat from the same coefficients
 // by changing K weights, without touching the model on the GPU.
 #pragma once
-#include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
 #include <vector>
 
+#include "core/tensor.h"
 #include "io/scene/scene.h"
 #include "model/gaussians.h"
 

@@ -1,12 +1,12 @@
 // Pictures and viewer data of the report's test views (internal to report.cpp).
 #pragma once
-#include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <string>
 #include <vector>
 
+#include "core/tensor.h"
 #include "eval/figures.h"
 
 namespace ddhgs::eval {

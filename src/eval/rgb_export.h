@@ -12,7 +12,7 @@
 // view-dependent coefficients are scaled by the curve's slope there (first
 // order), so view dependence survives as the viewer's SH evaluation shows it.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <array>
 #include <optional>

@@ -6,7 +6,7 @@
 // a 5-band camera's red band is its own red band, a 141-band sensor's red is
 // the mean of its 2-3 bands around 668 nm.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <string>
 #include <vector>

@@ -6,11 +6,13 @@
 // by name; groups that hold one row per Gaussian follow densification through
 // select_rows / append_rows, which move their moments with the rows.
 #pragma once
-#include <torch/torch.h>
+#include <torch/serialize/archive.h>
 
 #include <functional>
 #include <string>
 #include <vector>
+
+#include "core/tensor.h"
 
 namespace ddhgs::model {
 

@@ -17,7 +17,7 @@
 // response functions see; render/band_map.h) applies after decoding in both
 // forms, so a model renders M channels instead of N.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include "core/spectral_pca.h"
 

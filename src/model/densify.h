@@ -3,7 +3,7 @@
 // oversized ones, and reset opacities. Every change of rows is mirrored in
 // the Adam moments (model/adam.h), groups named by Gaussians::tensor_names().
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include "model/adam.h"
 #include "model/gaussians.h"

@@ -8,7 +8,7 @@
 // maps internally. Predicted clean images are clipped to [-1, 1] in model
 // space (= [0, 1] in data space) at every reverse step.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 #include <functional>

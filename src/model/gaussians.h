@@ -1,7 +1,7 @@
 // The N-band Gaussian model: its parameters, its colour model, how it
 // renders, and its PLY form.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <vector>
 

@@ -1,7 +1,7 @@
 // Nearest-neighbour distances of a point cloud through a uniform grid, for
 // initial Gaussian scales: O(P) on surface-like clouds instead of O(P^2).
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 namespace ddhgs::model {
 

@@ -9,7 +9,7 @@
 // change it). Training's camera refinement (train/camera_refinement.h) and
 // eval's pose alignment (eval/pose_alignment.h) both use it.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <utility>
 

@@ -5,7 +5,7 @@
 // inside the image are averaged ("valid" filtering), as scikit-image does, so
 // borders are not biased by zero padding.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 namespace ddhgs::model {
 

@@ -10,7 +10,7 @@
 // ring buffers (separable window, bands innermost and vectorised, row strips
 // and band blocks spread over threads) and writes one [H, W, N] gradient.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 namespace ddhgs::model {
 

@@ -1,5 +1,10 @@
 #include "model/unet.h"
 
+#include <torch/nn/functional/padding.h>
+#include <torch/nn/functional/upsampling.h>
+#include <torch/nn/modules/activation.h>
+#include <torch/nn/modules/linear.h>
+
 #include <cmath>
 #include <numeric>
 

@@ -1,13 +1,20 @@
 // The timestep-conditioned U-Net that predicts diffusion noise from a noisy
 // hyperspectral image and the Gaussian render it is conditioned on.
 #pragma once
-#include <torch/torch.h>
+#include <torch/nn/module.h>
+#include <torch/nn/modules/container/modulelist.h>
+#include <torch/nn/modules/container/sequential.h>
+#include <torch/nn/modules/conv.h>
+#include <torch/nn/modules/normalization.h>
+#include <torch/serialize/archive.h>
 
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
+
+#include "core/tensor.h"
 
 namespace ddhgs::model {
 

@@ -1,5 +1,7 @@
 #include "model/wavelength_encoder.h"
 
+#include <torch/nn/modules/linear.h>
+
 #include <cmath>
 
 #include "core/error.h"

@@ -7,9 +7,12 @@
 // The offsets are added to every Gaussian's SH coefficients of that band
 // inside render::eval_sh (no [G, N, 16] copy). Geometry is never modulated.
 #pragma once
-#include <torch/torch.h>
+#include <torch/nn/module.h>
+#include <torch/nn/modules/container/modulelist.h>
 
 #include <vector>
+
+#include "core/tensor.h"
 
 namespace ddhgs::model {
 

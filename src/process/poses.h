@@ -1,7 +1,7 @@
 // `ddhgs process`, last step: COLMAP poses and points to the scene's
 // transforms.json and points with per-band spectra, and back.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <string>
 #include <vector>

@@ -1,7 +1,7 @@
 // `ddhgs process`, first step: pseudo-RGB PNGs of the cubes for COLMAP,
 // with one contrast stretch for the whole scene.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 #include <string>

@@ -1,7 +1,7 @@
 // Front-to-back alpha blending of depth-sorted splats per 16x16 tile, N
 // channels, and its exact backward. Internal to the render layer.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cstdint>
 

@@ -4,7 +4,7 @@
 // The same map in LibTorch ops costs two [P, M] temporaries per call and
 // runs on one thread; at 640x512 and 141 bands each is 185 MB.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 namespace ddhgs::render {
 

@@ -1,7 +1,7 @@
 // EWA projection of 3D Gaussians to screen-space ellipses (3DGS conventions):
 // forward and its exact backward. Internal to the render layer.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include "render/rasterize.h"
 

@@ -1,7 +1,7 @@
 // Visible Gaussians in depth-rank order, the blender's per-call view of the
 // projected scene. Internal to the render layer.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cstdint>
 #include <vector>

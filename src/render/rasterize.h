@@ -5,7 +5,7 @@
 // by depth, alpha = min(0.99, o * exp(-power)), alpha < 1/255 skipped, a pixel
 // stops once transmittance < 1e-4.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <functional>
 

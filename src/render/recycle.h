@@ -4,7 +4,7 @@
 // holder, its storage is handed out again instead. Internal to the render
 // layer.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 namespace ddhgs::render {
 

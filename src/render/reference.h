@@ -3,7 +3,7 @@
 // transmittance. Used only by tests, which compare values and autograd
 // gradients of the two on random scenes.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include "render/rasterize.h"
 

@@ -2,7 +2,7 @@
 // materialised as [G, N, K], differentiated by LibTorch's autograd. Slow and
 // memory-hungry on purpose; tests compare the fast path against it.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 namespace ddhgs::render {
 

@@ -1,7 +1,7 @@
 // Spectral ray casting of the plant scene, the turntable camera rig, sensor
 // noise and the sparse point cloud.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <random>
 #include <vector>

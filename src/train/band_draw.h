@@ -5,7 +5,7 @@
 // expectation: the decode, the loss and its backward then cost count / N of
 // the full image's.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cstdint>
 

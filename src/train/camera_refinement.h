@@ -16,12 +16,13 @@
 // view's gradient, which Adam's per-element scaling turns into full steps:
 // the corrections then wander and a known error is not recovered.)
 #pragma once
-#include <torch/torch.h>
+#include <torch/nn/module.h>
 
 #include <utility>
 #include <vector>
 
 #include "core/camera.h"
+#include "core/tensor.h"
 
 namespace ddhgs::train {
 

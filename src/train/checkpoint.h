@@ -3,7 +3,8 @@
 // iteration, RunCounters), the Gaussians, the Adam state, densification
 // statistics and any extra modules (wavelength encoder, denoiser) by name.
 #pragma once
-#include <torch/torch.h>
+#include <torch/nn/module.h>
+#include <torch/serialize/archive.h>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
@@ -11,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/tensor.h"
 #include "model/adam.h"
 #include "model/densify.h"
 #include "model/gaussians.h"

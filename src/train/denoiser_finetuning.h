@@ -5,12 +5,12 @@
 // fit diffusion.finetune_cache_mb; otherwise each step renders the views it
 // draws.
 #pragma once
-#include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
 #include <functional>
 #include <vector>
 
+#include "core/tensor.h"
 #include "io/scene/scene.h"
 #include "model/adam.h"
 #include "train/diffusion_term.h"

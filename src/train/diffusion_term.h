@@ -8,7 +8,6 @@
 // Config: loss.diffusion (w4) and the "diffusion" section of the preset,
 // parsed into DiffusionTermOptions by train/run_config.h.
 #pragma once
-#include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
@@ -17,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "core/tensor.h"
 #include "model/diffusion.h"
 #include "train/losses.h"
 #include "train/run_folder.h"

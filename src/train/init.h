@@ -2,7 +2,7 @@
 // points' spectra, else from the training views they project into, else
 // grey), or random points inside the cameras' view volume.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cstdint>
 #include <vector>

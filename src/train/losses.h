@@ -1,7 +1,7 @@
 // Training losses: a weighted list of named terms, so later components (the
 // spectral loss, the diffusion term) join by appending a term.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cstdint>
 #include <functional>

@@ -8,7 +8,7 @@
 // the absolute level. Values in [0, 1] give nearly flat softmax distributions
 // at temperature 1 (the paper's choice); a temperature below 1 sharpens them.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 namespace ddhgs::train {
 

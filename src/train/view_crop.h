@@ -5,7 +5,7 @@
 // pixel equally often, and the loss is weighted so that its gradient is the
 // whole view's in expectation.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cstdint>
 

@@ -4,6 +4,7 @@
 // scene size and bars come from the environment so that
 // scripts/process_benchmark.sh runs the same test at full size.
 #include <gtest/gtest.h>
+#include <torch/linalg.h>
 
 #include <nlohmann/json.hpp>
 

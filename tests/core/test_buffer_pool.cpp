@@ -2,12 +2,12 @@
 // tensors keep a storage use count of 1 (so autograd steals them into
 // .grad), stale blocks are freed.
 #include <gtest/gtest.h>
-#include <torch/torch.h>
 
 #include <random>
 #include <set>
 
 #include "core/buffer_pool.h"
+#include "core/tensor.h"
 
 using namespace ddhgs;
 

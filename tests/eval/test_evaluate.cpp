@@ -2,7 +2,6 @@
 // stored views are the model's own renders plus noise, the clean views its
 // exact renders, so every expected number is known.
 #include <gtest/gtest.h>
-#include <torch/torch.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -10,6 +9,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "core/tensor.h"
 #include "eval/evaluate.h"
 #include "eval/render_frames.h"
 #include "io/cube/cube.h"

@@ -1,8 +1,8 @@
 // Colour maps, band selection, error heatmaps and picture layout.
 #include <gtest/gtest.h>
-#include <torch/torch.h>
 
 #include "core/error.h"
+#include "core/tensor.h"
 #include "eval/colormap.h"
 #include "eval/figures.h"
 

@@ -1,13 +1,14 @@
 // Metrics against hand-computed values and against an independent numpy
 // computation on random images.
 #include <gtest/gtest.h>
-#include <torch/torch.h>
+#include <torch/nn/functional/conv.h>
 
 #include <cmath>
 #include <fstream>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/tensor.h"
 #include "eval/metrics.h"
 #include "model/ssim.h"
 #include "support/test_support.h"

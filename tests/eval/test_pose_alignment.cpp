@@ -2,10 +2,10 @@
 // from a known pose error is matched again and the image motion found is the
 // error's; a view whose pose is right keeps it; no steps, no change.
 #include <gtest/gtest.h>
-#include <torch/torch.h>
 
 #include <cmath>
 
+#include "core/tensor.h"
 #include "eval/metrics.h"
 #include "eval/pose_alignment.h"
 #include "model/gaussian_fixtures.h"

@@ -2,6 +2,7 @@
 // readers take, written by ddhgs's own writers, one input per file
 // (tests/fuzz/fuzz_target.h).
 //   fuzz_seeds DIR
+#include <torch/serialize.h>
 #include <cstdio>
 #include <fstream>
 

@@ -4,6 +4,7 @@
 // (ENVI), allocated what a corrupt header asked for (TIFF, PNG), trusted a
 // float list count (PLY) or passed NaN poses and points on (COLMAP).
 #include <gtest/gtest.h>
+#include <torch/serialize.h>
 
 #include <torch/csrc/jit/serialization/pickle.h>
 

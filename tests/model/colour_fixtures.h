@@ -1,7 +1,7 @@
 // Small scenes for tests of the colour model (model/colour_model.h), in the
 // model layer and in the layers above it (its PLY form, exports).
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include "model/gaussians.h"
 #include "render/render_fixture.h"

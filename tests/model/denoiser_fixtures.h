@@ -1,6 +1,6 @@
 // Small denoisers shared by the U-Net and diffusion tests.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <vector>
 

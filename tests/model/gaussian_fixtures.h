@@ -1,7 +1,7 @@
 // Small Gaussian scenes shared by tests of several layers (camera
 // refinement in train, pose alignment in eval).
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cmath>
 #include <cstdint>

@@ -2,6 +2,7 @@
 // rendering and against the dense double-precision reference, its gradients
 // against finite differences, and its maps (tests/eval: its PLY form).
 #include <gtest/gtest.h>
+#include <torch/linalg.h>
 
 #include "core/band_map.h"
 #include "model/colour_fixtures.h"

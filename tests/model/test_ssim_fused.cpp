@@ -4,6 +4,7 @@
 // and band counts that fill no, one or several band blocks exactly.
 #include <ATen/Parallel.h>
 #include <gtest/gtest.h>
+#include <torch/nn/functional/upsampling.h>
 
 #include <string>
 #include <tuple>

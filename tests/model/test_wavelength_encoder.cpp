@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <torch/optim/adam.h>
 
 #include "core/error.h"
 #include "model/wavelength_encoder.h"

@@ -2,7 +2,7 @@
 // cases: behind the camera, off-screen, needle-thin, huge, nearly transparent,
 // and an opaque stack that makes pixels hit the 1e-4 transmittance stop.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <algorithm>
 #include <string>

@@ -2,6 +2,7 @@
 // the corrections are centred over the training views, gradients match
 // finite differences, and a known pose error is recovered by rendering.
 #include <gtest/gtest.h>
+#include <torch/optim/adam.h>
 
 #include "model/densify.h"
 #include "model/gaussian_fixtures.h"

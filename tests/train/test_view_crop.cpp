@@ -2,10 +2,10 @@
 // pixel away from the border is measured equally often, the loss weight makes the expected gradient
 // the whole view's, and the crop's camera renders exactly that part of the whole view's render.
 #include <gtest/gtest.h>
-#include <torch/torch.h>
 
 #include <vector>
 
+#include "core/tensor.h"
 #include "render/render_fixture.h"
 #include "train/view_crop.h"
 

@@ -2,7 +2,7 @@
 // TIFF, and PNG/JPEG as 3-band cubes. Cubes stay in their stored sample type
 // in memory (a BaySpec scene is 20 GB as uint8) and convert to float per use.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 #include <optional>

@@ -1,6 +1,6 @@
 // 8-bit images (PNG, JPEG) for pseudo-RGB views and previews.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 

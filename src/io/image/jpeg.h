@@ -4,7 +4,7 @@
 // fuzzer's finds, tests/fuzz/regressions/*jpeg*); libjpeg-turbo checks
 // every code it decodes.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 #include <string>

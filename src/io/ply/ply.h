@@ -1,6 +1,6 @@
 // PLY files: N-band Gaussian models and sparse point clouds with spectra.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 #include <vector>

@@ -9,7 +9,7 @@
 // into radiance and reflectance. Placing the band cameras in a scene is not
 // here yet (issue 31).
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <filesystem>
 #include <optional>

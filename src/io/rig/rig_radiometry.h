@@ -15,7 +15,7 @@
 // for the whole flight) or else from the capture's own downwelling light
 // sensor (pi / irradiance; no sun-angle correction).
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <string>
 #include <vector>

@@ -6,7 +6,7 @@
 // backdrop), since on a masked view the backdrop is most of the image and is
 // matched almost exactly, which lifts the whole-image figures.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <optional>
 #include <string>

@@ -8,7 +8,7 @@
 // Clean ground truth (synthetic scenes): a file of the same name under clean/
 // in the dataset root, e.g. hyperspectral/r_003.npy -> clean/r_003.npy.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cstddef>
 #include <filesystem>

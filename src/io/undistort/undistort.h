@@ -7,7 +7,7 @@
 // samples are interpolated in floating point and rounded back to their type:
 // an error of at most half a quantisation step, as for area averaging.
 #pragma once
-#include <torch/torch.h>
+#include "core/tensor.h"
 
 #include <cstdint>
 #include <mutex>
