@@ -103,15 +103,34 @@ Pool& pool() {
   return *p;
 }
 
+// The innermost CropScope of this thread (crop_pixels 0: none).
+thread_local int64_t t_crop_pixels = 0, t_full_pixels = 0;
+
 }  // namespace
+
+CropScope::CropScope(int64_t crop_pixels, int64_t full_pixels)
+    : previous_crop_(t_crop_pixels), previous_full_(t_full_pixels) {
+  const bool valid = crop_pixels > 0 && full_pixels >= crop_pixels;
+  t_crop_pixels = valid ? crop_pixels : 0;
+  t_full_pixels = valid ? full_pixels : 0;
+}
+
+CropScope::~CropScope() {
+  t_crop_pixels = previous_crop_;
+  t_full_pixels = previous_full_;
+}
 
 at::Tensor pooled_empty(at::IntArrayRef sizes, at::ScalarType dtype) {
   int64_t numel = 1;
   for (int64_t s : sizes) numel *= s;
   const size_t bytes = size_t(numel) * at::elementSize(dtype);
-  if (bytes < kPoolMinBytes) return at::empty(sizes, at::TensorOptions().dtype(dtype));
+  size_t serve_as = bytes;
+  if (t_crop_pixels > 0 && bytes > 0 && bytes % size_t(t_crop_pixels) == 0)
+    serve_as = bytes / size_t(t_crop_pixels) * size_t(t_full_pixels);
+  if (serve_as < kPoolMinBytes) return at::empty(sizes, at::TensorOptions().dtype(dtype));
   size_t capacity = 0;
-  void* data = pool().take(bytes, capacity);
+  // A crop's image asks for the block of the whole view's image.
+  void* data = pool().take(serve_as, capacity);
   return at::from_blob(
       data, sizes, [capacity](void* p) { pool().give_back(p, capacity); },
       at::TensorOptions().dtype(dtype));

@@ -15,6 +15,7 @@
 #include <ATen/ATen.h>
 
 #include <cstddef>
+#include <cstdint>
 
 namespace ddhgs::core {
 
@@ -24,6 +25,25 @@ at::Tensor pooled_empty(at::IntArrayRef sizes, at::ScalarType dtype = at::kFloat
 
 // Smaller requests are left to malloc, which already reuses them.
 constexpr size_t kPoolMinBytes = size_t(1) << 20;
+
+// While a CropScope lives on a thread, that thread's requests whose size is
+// a whole number of rows of the crop (bytes a multiple of crop_pixels: an
+// image [h, w, C] or [P, C] of the crop, any C and type) are served as the
+// same image of the whole view (full_pixels rows) would be: they take and
+// make blocks of the whole view's size. A training step on a random crop of
+// its view (a crop's area is anything from a sliver to the whole view) then
+// meets the same few blocks whatever its size, instead of faulting in fresh
+// pages whenever its size class was freed. Scopes nest; the innermost wins.
+class CropScope {
+ public:
+  CropScope(int64_t crop_pixels, int64_t full_pixels);
+  ~CropScope();
+  CropScope(const CropScope&) = delete;
+  CropScope& operator=(const CropScope&) = delete;
+
+ private:
+  int64_t previous_crop_, previous_full_;
+};
 
 // Bytes of the blocks waiting in the pool (not in use).
 size_t pool_idle_bytes();

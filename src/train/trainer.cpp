@@ -402,6 +402,12 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   const std::optional<ViewCrop> crop =
       pseudo ? std::nullopt
              : step_crop(iteration, camera.intrinsics.width, camera.intrinsics.height);
+  // The crop's images (target, render, loss gradient) take blocks of the
+  // whole view's size, whatever the crop's (core/buffer_pool.h).
+  std::optional<core::CropScope> crop_blocks;
+  if (crop)
+    crop_blocks.emplace(int64_t(crop->width()) * crop->height(),
+                        int64_t(camera.intrinsics.width) * camera.intrinsics.height);
   torch::Tensor target;
   {
     core::StageScope stage("view (to float)");
@@ -447,6 +453,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     core::StageScope stage("backward (other)");
     loss.total.backward();
   }
+  crop_blocks.reset();
 
   if (schedule_.densifies(iteration) && sink.grad().defined()) {
     core::StageScope stage("densify stats");

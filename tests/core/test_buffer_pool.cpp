@@ -3,6 +3,7 @@
 // .grad), stale blocks are freed.
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <random>
 #include <set>
 
@@ -110,6 +111,59 @@ TEST(BufferPool, AutogradStealsThePooledGradient) {
   EXPECT_TRUE(torch::allclose(leaf.grad(), torch::full({kLarge}, 2.0f)));
   leaf.mutable_grad() = torch::Tensor();
   EXPECT_GE(core::pool_idle_bytes(), size_t(kLarge) * 4);
+}
+
+// Steps on random crops of one view: crops from a sliver to the whole view
+// (sizes over several octaves), three crop images in flight per step (the
+// target, the render and its gradient: [h, w, C] or [P, C]). Without a
+// CropScope the pool makes blocks for many size classes and frees the ones
+// that go unasked for a while; with one, every crop image is served like the
+// whole view's, so the same three blocks come back on every step. Requests
+// that are not a whole number of the crop's rows keep their own size.
+TEST(BufferPool, CropsOfAViewShareTheWholeViewsBlocks) {
+  constexpr int64_t kWidth = 256, kHeight = 200, kChannels = 24;  // 4.9 MB whole
+  auto steps = [](bool scoped) {
+    core::pool_release_idle();
+    std::set<void*> blocks;
+    std::mt19937 draw(11);
+    for (int step = 0; step < 300; ++step) {
+      const int64_t w = 8 + int64_t(draw() % uint32_t(kWidth - 7));
+      const int64_t h = 8 + int64_t(draw() % uint32_t(kHeight - 7));
+      std::optional<core::CropScope> scope;
+      if (scoped) scope.emplace(w * h, kWidth * kHeight);
+      at::Tensor target = core::pooled_empty({h, w, kChannels});
+      at::Tensor render = core::pooled_empty({h * w, kChannels});
+      at::Tensor grad = core::pooled_empty({h, w, kChannels});
+      // Other buffers of the step, of sizes unrelated to the crop.
+      for (int i = 0; i < 30; ++i) at::Tensor other = core::pooled_empty({kLarge / 2 + 3});
+      for (const at::Tensor& t : {target, render, grad}) {
+        if (t.nbytes() >= core::kPoolMinBytes || scoped) blocks.insert(t.data_ptr());
+      }
+    }
+    core::pool_release_idle();
+    return blocks.size();
+  };
+  EXPECT_EQ(steps(true), 3u);
+  EXPECT_GT(steps(false), 10u);
+
+  // A crop image takes the whole view's block; a request that is not a
+  // whole number of the crop's rows keeps its own size.
+  core::pool_release_idle();
+  void* view_block = nullptr;
+  { view_block = core::pooled_empty({4 * kLarge}).data_ptr(); }  // 16 MB, idle
+  {
+    core::CropScope scope(kLarge / 4, kLarge);              // 262,144 of 1,048,576 pixels
+    const at::Tensor image = core::pooled_empty({kLarge});  // 16 bytes a pixel
+    EXPECT_EQ(image.data_ptr(), view_block);
+  }
+  {
+    core::CropScope scope(kLarge / 4, kLarge);
+    const at::Tensor other = core::pooled_empty({kLarge + 1});
+    EXPECT_NE(other.data_ptr(), view_block);
+  }
+  const at::Tensor outside = core::pooled_empty({kLarge});
+  EXPECT_NE(outside.data_ptr(), view_block);
+  core::pool_release_idle();
 }
 
 }  // namespace

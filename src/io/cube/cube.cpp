@@ -1,6 +1,7 @@
 // Cube format dispatch and the conversions shared by every cube reader.
 #include "io/cube/cube.h"
 
+#include <algorithm>
 #include <cctype>
 
 #include "core/buffer_pool.h"
@@ -263,12 +264,28 @@ namespace {
 template <typename T>
 torch::Tensor samples_to_float(const torch::Tensor& raw, float scale) {
   torch::Tensor out = core::pooled_empty(raw.sizes());
+  // Rows of row_length samples, row_stride apart (a window of a whole view).
+  const int64_t rows = raw.dim() == 3 ? raw.size(0) : 1;
+  const int64_t row_length = rows > 0 ? raw.numel() / rows : 0;
+  const int64_t row_stride = raw.is_contiguous() ? row_length : raw.stride(0);
   const T* src = static_cast<const T*>(raw.data_ptr());
   float* dst = out.data_ptr<float>();
-  core::parallel_for(0, raw.numel(), 1 << 16, [&](int64_t begin, int64_t end) {
-    for (int64_t i = begin; i < end; ++i) dst[i] = float(src[i]) / scale;
+  const int64_t grain = std::max<int64_t>(1, (int64_t(1) << 16) / std::max<int64_t>(1, row_length));
+  core::parallel_for(0, rows, grain, [&](int64_t begin, int64_t end) {
+    for (int64_t r = begin; r < end; ++r) {
+      const T* in = src + r * row_stride;
+      float* o = dst + r * row_length;
+      for (int64_t i = 0; i < row_length; ++i) o[i] = float(in[i]) / scale;
+    }
   });
   return out;
+}
+
+// Whether a tensor's rows (its last two dimensions) are each contiguous, as
+// in a window of a contiguous [H, W, B] view.
+bool rows_contiguous(const torch::Tensor& t) {
+  return t.is_contiguous() ||
+         (t.dim() == 3 && t.stride(2) == 1 && t.stride(1) == t.size(2) && t.stride(0) >= 0);
 }
 
 }  // namespace
@@ -276,7 +293,7 @@ torch::Tensor samples_to_float(const torch::Tensor& raw, float scale) {
 torch::Tensor cube_to_float(const Cube& cube, double scale) {
   if (scale <= 0) scale = cube.scale_factor ? *cube.scale_factor : default_scale(cube.type);
   torch::Tensor raw = cube.data;
-  if (!cube.ignore_value && raw.is_contiguous() &&
+  if (!cube.ignore_value && rows_contiguous(raw) &&
       raw.scalar_type() == detail::tensor_dtype(cube.type)) {
     switch (cube.type) {
       case SampleType::U8:

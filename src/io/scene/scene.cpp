@@ -204,18 +204,22 @@ Cube Scene::cached_view(const fs::path& path, const View& view) const {
 
 namespace {
 
-// The samples of data [H, W, B] (any sample type) at bands, copied bit for bit.
+// The samples of data [H, W, B] (any sample type, any row and pixel
+// strides: a window of a cached view) at bands, copied bit for bit.
 template <typename Bits>
 torch::Tensor gather_bands(const torch::Tensor& data, const torch::Tensor& bands) {
-  const torch::Tensor in = data.contiguous();
-  const int64_t pixels = in.size(0) * in.size(1), n = in.size(2), count = bands.size(0);
-  torch::Tensor out = torch::empty({in.size(0), in.size(1), count}, in.options());
+  const torch::Tensor in = data.stride(2) == 1 ? data : data.contiguous();
+  const int64_t h = in.size(0), w = in.size(1), count = bands.size(0);
+  const int64_t row_stride = in.stride(0), pixel_stride = in.stride(1);
+  torch::Tensor out = torch::empty({h, w, count}, in.options());
   const auto* src = static_cast<const Bits*>(in.data_ptr());
   auto* dst = static_cast<Bits*>(out.data_ptr());
   const int64_t* index = bands.data_ptr<int64_t>();
-  core::parallel_for(0, pixels, 4096, [&](int64_t begin, int64_t end) {
-    for (int64_t p = begin; p < end; ++p)
-      for (int64_t j = 0; j < count; ++j) dst[p * count + j] = src[p * n + index[j]];
+  core::parallel_for(0, h * w, 4096, [&](int64_t begin, int64_t end) {
+    for (int64_t p = begin; p < end; ++p) {
+      const Bits* pixel = src + (p / w) * row_stride + (p % w) * pixel_stride;
+      for (int64_t j = 0; j < count; ++j) dst[p * count + j] = pixel[index[j]];
+    }
   });
   return out;
 }
@@ -254,8 +258,9 @@ torch::Tensor Scene::image(int view, const ImageWindow& window) const {
         break;
     }
   }
-  // The cached tensor stays whole: only this copy of the cube is narrowed.
-  cube.data = data.contiguous();
+  // The cached tensor stays whole: this copy of the cube holds a window of
+  // it, whose rows cube_to_float converts without copying them first.
+  cube.data = data;
   return cube_to_float(cube, cube.type == stored_type ? scale : 0);
 }
 
