@@ -2,6 +2,7 @@
 #include <cstring>
 #include <fstream>
 
+#include "core/buffer_pool.h"
 #include "core/error.h"
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
@@ -179,7 +180,9 @@ Cube read_npy(const fs::path& path, const CubeReadOptions& options) {
   const NpyHeader& h = npy.header;
   std::vector<int64_t> stored_shape = h.shape;
   if (h.fortran_order) std::reverse(stored_shape.begin(), stored_shape.end());
-  torch::Tensor data = torch::empty(stored_shape, torch::TensorOptions(tensor_dtype(h.type)));
+  // Pooled: a training run that holds fewer views than it trains on reads a
+  // view into the block of one its cache let go, not into fresh pages.
+  torch::Tensor data = core::pooled_empty(stored_shape, tensor_dtype(h.type));
   npy.in.read(static_cast<char*>(data.data_ptr()), std::streamsize(bytes));
   if (uint64_t(npy.in.gcount()) != bytes) throw core::Error(path, "read failed (truncated data)");
   if (h.big_endian) swap_bytes(data);
