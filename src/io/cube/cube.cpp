@@ -293,8 +293,10 @@ bool rows_contiguous(const torch::Tensor& t) {
 torch::Tensor cube_to_float(const Cube& cube, double scale) {
   if (scale <= 0) scale = cube.scale_factor ? *cube.scale_factor : default_scale(cube.type);
   torch::Tensor raw = cube.data;
-  if (!cube.ignore_value && rows_contiguous(raw) &&
-      raw.scalar_type() == detail::tensor_dtype(cube.type)) {
+  // A window of a view (Scene::image) keeps its rows in place; any other
+  // layout is copied first.
+  if (!rows_contiguous(raw)) raw = raw.contiguous();
+  if (!cube.ignore_value && raw.scalar_type() == detail::tensor_dtype(cube.type)) {
     switch (cube.type) {
       case SampleType::U8:
         return samples_to_float<uint8_t>(raw, float(scale));
