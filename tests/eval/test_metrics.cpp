@@ -11,6 +11,7 @@
 #include "core/tensor.h"
 #include "eval/metrics.h"
 #include "model/ssim.h"
+#include "support/error_text.h"
 #include "support/test_support.h"
 
 namespace ddhgs::eval {
@@ -158,6 +159,37 @@ TEST(Metrics, BadInputThrowsOneLineError) {
   } catch (const core::Error& e) {
     EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("[12, 5, 3]"), std::string::npos);
+  }
+}
+
+// psnr_db and rmse sum the squared differences in one pass (no double
+// copies of the images): the same figures as the double tensors' mean, over
+// several of its blocks of 65,536 samples, for float and double images and
+// a non-contiguous one, and NaN or Inf in either image is still refused.
+TEST(Metrics, PsnrAndRmseMatchTheDoubleTensorReference) {
+  torch::manual_seed(12);
+  const torch::Tensor a = torch::rand({70, 60, 40}), b = torch::rand({70, 60, 40});
+  auto reference_mse = [](const torch::Tensor& p, const torch::Tensor& g) {
+    return (p.to(torch::kDouble) - g.to(torch::kDouble)).square().mean().item<double>();
+  };
+  const double mse = reference_mse(a, b);
+  EXPECT_NEAR(psnr_db(a, b), 10 * std::log10(1 / mse), 1e-10);
+  EXPECT_NEAR(rmse(a, b), std::sqrt(mse), 1e-12);  // the sums run in another order
+  EXPECT_NEAR(psnr_db(a.to(torch::kDouble), b.to(torch::kDouble)), 10 * std::log10(1 / mse), 1e-10);
+  const torch::Tensor strided = a.transpose(0, 1).contiguous().transpose(0, 1);
+  ASSERT_FALSE(strided.is_contiguous());
+  EXPECT_NEAR(psnr_db(strided, b), 10 * std::log10(1 / mse), 1e-10);
+  // Half precision goes through the double tensors.
+  EXPECT_NEAR(psnr_db(a.to(torch::kHalf), b.to(torch::kHalf)),
+              10 * std::log10(1 / reference_mse(a.to(torch::kHalf), b.to(torch::kHalf))), 1e-10);
+  for (const double bad : {std::nan(""), double(INFINITY)}) {
+    torch::Tensor p = a.clone(), g = b.clone();
+    p[69][59][39] = bad;
+    g[0][0][0] = bad;
+    EXPECT_TRUE(
+        test::contains(test::error_of([&] { psnr_db(p, b); }), "prediction contains NaN or Inf"));
+    EXPECT_TRUE(
+        test::contains(test::error_of([&] { rmse(a, g); }), "ground truth contains NaN or Inf"));
   }
 }
 
