@@ -144,10 +144,6 @@ double sam_checked(const torch::Tensor& p, const torch::Tensor& g) {
   return angle.masked_select(valid).sum().item<double>() / double(count);
 }
 
-}  // namespace
-
-namespace {
-
 // The mean squared difference of two comparable images, in double, in one
 // pass over their samples: the same figure as the double tensors' (p -
 // g).square().mean() up to the order of the sum, without the four

@@ -284,8 +284,7 @@ torch::Tensor samples_to_float(const torch::Tensor& raw, float scale) {
 // Whether a tensor's rows (its last two dimensions) are each contiguous, as
 // in a window of a contiguous [H, W, B] view.
 bool rows_contiguous(const torch::Tensor& t) {
-  return t.is_contiguous() ||
-         (t.dim() == 3 && t.stride(2) == 1 && t.stride(1) == t.size(2) && t.stride(0) >= 0);
+  return t.is_contiguous() || (t.dim() == 3 && t.stride(2) == 1 && t.stride(1) == t.size(2));
 }
 
 }  // namespace
