@@ -1,5 +1,6 @@
 #include "render/decode.h"
 
+#include <cstring>
 #include <vector>
 
 #include "core/buffer_pool.h"
@@ -13,39 +14,64 @@ namespace {
 // Pixels per reduction chunk: the partial sums depend on it, not on threads.
 constexpr int64_t kChunk = 2048;
 
+// A vector of kLanes bands (GCC vector extension): one AVX-512 register where
+// the build has it, one AVX2 register otherwise.
+#if defined(__AVX512F__)
+constexpr int64_t kLanes = 16;
+#else
+constexpr int64_t kLanes = 8;
+#endif
+typedef float Vec __attribute__((vector_size(sizeof(float) * kLanes)));
+
+inline Vec load(const float* p) {
+  Vec v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+
+inline void store(float* p, const Vec& v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
+// The first n (< kLanes) floats at p, the rest zero: a pixel's last bands,
+// without reading past its row.
+inline Vec load_tail(const float* p, int64_t n) {
+  Vec v = {};
+  std::memcpy(&v, p, size_t(n) * sizeof(float));
+  return v;
+}
+
+// The sum of v's lanes, in a fixed order.
+inline float lane_sum(const Vec& v) {
+  float sum = 0;
+  for (int64_t l = 0; l < kLanes; ++l) sum += v[l];
+  return sum;
+}
+
 // Rows the kernels read: the basis transposed ([K, M], one contiguous row
-// per channel), then m - bg and bg.
+// per channel), then m - bg and bg, each padded with zeros to a whole
+// number of vectors (stride S).
 struct Rows {
-  torch::Tensor table;  // [K + 2, M] float32 contiguous
-  int64_t K = 0, M = 0;
-  const float* row(int64_t r) const { return table.data_ptr<float>() + r * M; }
+  torch::Tensor table;          // [K + 2, S] float32 contiguous
+  const float* data = nullptr;  // table's
+  int64_t K = 0, M = 0, S = 0;
+  const float* row(int64_t r) const { return data + r * S; }
 };
 
 Rows rows_of(const torch::Tensor& basis, const torch::Tensor& mean,
              const torch::Tensor& background) {
   Rows r;
   r.K = basis.size(1), r.M = basis.size(0);
-  r.table = torch::cat({basis.t(), (mean - background).unsqueeze(0), background.unsqueeze(0)}, 0)
-                .to(torch::kFloat32)
-                .contiguous();
+  r.S = (r.M + kLanes - 1) / kLanes * kLanes;
+  r.table = torch::zeros({r.K + 2, r.S}, torch::kFloat32);
+  r.table.narrow(1, 0, r.M).copy_(
+      torch::cat({basis.t(), (mean - background).unsqueeze(0), background.unsqueeze(0)}, 0));
+  r.data = r.table.data_ptr<float>();
   return r;
 }
 
-// sum_j a[j] b[j] in 8 interleaved partial sums, added in a fixed order:
-// the compiler keeps the 8 in one vector register (a plain running sum may
-// not be reordered, so it would stay scalar).
-inline float dot(const float* a, const float* b, int64_t n) {
-  constexpr int kLanes = 8;
-  float lanes[kLanes] = {};
-  int64_t j = 0;
-  for (; j + kLanes <= n; j += kLanes)
-    for (int l = 0; l < kLanes; ++l) lanes[l] += a[j + l] * b[j + l];
-  float sum = 0;
-  for (; j < n; ++j) sum += a[j] * b[j];
-  for (int l = 0; l < kLanes; ++l) sum += lanes[l];
-  return sum;
-}
-
+// out[p] = bg + alpha[p] (m - bg) + sum_k z[p, k] B[:, k], a vector of bands
+// at a time, each summed in a register.
 void forward_kernel(const float* z, const float* alpha, const Rows& r, int64_t P, float* out) {
   const int64_t K = r.K, M = r.M;
   const float* lift = r.row(K);
@@ -54,11 +80,105 @@ void forward_kernel(const float* z, const float* alpha, const Rows& r, int64_t P
     for (int64_t p = begin; p < end; ++p) {
       float* o = out + p * M;
       const float a = alpha[p];
-      for (int64_t j = 0; j < M; ++j) o[j] = bg[j] + a * lift[j];
-      for (int64_t k = 0; k < K; ++k) {
-        const float zk = z[p * K + k];
-        const float* b = r.row(k);
-        for (int64_t j = 0; j < M; ++j) o[j] += zk * b[j];
+      const float* zp = z + p * K;
+      for (int64_t j = 0; j < M; j += kLanes) {
+        Vec v = load(bg + j) + a * load(lift + j);
+        for (int64_t k = 0; k < K; ++k) v += zp[k] * load(r.row(k) + j);
+        if (j + kLanes <= M) {
+          store(o + j, v);
+        } else {
+          for (int64_t l = 0; l < M - j; ++l) o[j + l] = v[l];
+        }
+      }
+    }
+  });
+}
+
+// One chunk of the backward for kK latent channels (a compile-time count, so
+// the kK + 1 dot products stay in registers): per pixel, a vector of the
+// gradient's bands at a time serves both the products with the basis rows
+// and m - bg (dz, dalpha) and the chunk's sums g z, g alpha and g (acc:
+// [kK + 2, S]).
+template <int64_t kK>
+void backward_chunk(const float* g, const float* z, const float* a, const Rows& r, int64_t p0,
+                    int64_t p1, float* dz, float* da, float* acc) {
+  const int64_t M = r.M, S = r.S;
+  for (int64_t p = p0; p < p1; ++p) {
+    const float* gp = g + p * M;
+    const float* zp = z + p * kK;
+    Vec dot[kK + 1] = {};
+    for (int64_t j = 0; j < M; j += kLanes) {
+      const Vec gv = j + kLanes <= M ? load(gp + j) : load_tail(gp + j, M - j);
+      for (int64_t k = 0; k <= kK; ++k) dot[k] += gv * load(r.row(k) + j);
+      for (int64_t k = 0; k < kK; ++k) {
+        float* row = acc + k * S + j;
+        store(row, load(row) + zp[k] * gv);
+      }
+      float* row_alpha = acc + kK * S + j;
+      float* row_all = acc + (kK + 1) * S + j;
+      store(row_alpha, load(row_alpha) + a[p] * gv);
+      store(row_all, load(row_all) + gv);
+    }
+    for (int64_t k = 0; k < kK; ++k) dz[p * kK + k] = lane_sum(dot[k]);
+    da[p] = lane_sum(dot[kK]);
+  }
+}
+
+// The same for any number of latent channels, one basis row at a time.
+void backward_chunk_any(const float* g, const float* z, const float* a, const Rows& r, int64_t p0,
+                        int64_t p1, float* dz, float* da, float* acc) {
+  const int64_t K = r.K, M = r.M, S = r.S;
+  for (int64_t p = p0; p < p1; ++p) {
+    const float* gp = g + p * M;
+    for (int64_t k = 0; k <= K; ++k) {  // k == K: the alpha row (m - bg)
+      Vec dot = {};
+      for (int64_t j = 0; j < M; j += kLanes)
+        dot += (j + kLanes <= M ? load(gp + j) : load_tail(gp + j, M - j)) * load(r.row(k) + j);
+      (k < K ? dz[p * K + k] : da[p]) = lane_sum(dot);
+    }
+    for (int64_t k = 0; k <= K + 1; ++k) {
+      const float w = k < K ? z[p * K + k] : k == K ? a[p] : 1.0f;
+      float* row = acc + k * S;
+      for (int64_t j = 0; j < M; ++j) row[j] += w * gp[j];
+    }
+  }
+}
+
+void backward_kernel(const float* g, const float* z, const float* a, const Rows& r, int64_t P,
+                     float* dz, float* da, float* partials) {
+  const int64_t chunks = (P + kChunk - 1) / kChunk;
+  const int64_t K = r.K, S = r.S;
+  core::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
+    for (int64_t chunk = chunk_begin; chunk < chunk_end; ++chunk) {
+      float* acc = partials + chunk * (K + 2) * S;
+      const int64_t p0 = chunk * kChunk, p1 = std::min(P, p0 + kChunk);
+      switch (K) {
+        case 1:
+          backward_chunk<1>(g, z, a, r, p0, p1, dz, da, acc);
+          break;
+        case 2:
+          backward_chunk<2>(g, z, a, r, p0, p1, dz, da, acc);
+          break;
+        case 3:
+          backward_chunk<3>(g, z, a, r, p0, p1, dz, da, acc);
+          break;
+        case 4:
+          backward_chunk<4>(g, z, a, r, p0, p1, dz, da, acc);
+          break;
+        case 5:
+          backward_chunk<5>(g, z, a, r, p0, p1, dz, da, acc);
+          break;
+        case 6:
+          backward_chunk<6>(g, z, a, r, p0, p1, dz, da, acc);
+          break;
+        case 7:
+          backward_chunk<7>(g, z, a, r, p0, p1, dz, da, acc);
+          break;
+        case 8:
+          backward_chunk<8>(g, z, a, r, p0, p1, dz, da, acc);
+          break;
+        default:
+          backward_chunk_any(g, z, a, r, p0, p1, dz, da, acc);
       }
     }
   });
@@ -91,39 +211,12 @@ class DecodeFunction : public torch::autograd::Function<DecodeFunction> {
     auto d_latent = core::pooled_empty({P, K});
     auto d_alpha = torch::empty({P});
     // Per chunk: sum_p g[p, j] z[p, k] (K rows), sum_p g alpha, sum_p g.
-    auto partials = torch::zeros({chunks, K + 2, M});
-    const float* g = grad.data_ptr<float>();
-    const float* z = latent.data_ptr<float>();
-    const float* a = alpha.data_ptr<float>();
-    float* dz = d_latent.data_ptr<float>();
-    float* da = d_alpha.data_ptr<float>();
-    float* part = partials.data_ptr<float>();
-    core::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
-      for (int64_t chunk = chunk_begin; chunk < chunk_end; ++chunk) {
-        float* acc = part + chunk * (K + 2) * M;
-        const int64_t p_end = std::min(P, (chunk + 1) * kChunk);
-        for (int64_t p = chunk * kChunk; p < p_end; ++p) {
-          const float* gp = g + p * M;
-          for (int64_t k = 0; k <= K; ++k) {  // k == K: the alpha row (m - bg)
-            (k < K ? dz[p * K + k] : da[p]) = dot(gp, r.row(k), M);
-          }
-          for (int64_t k = 0; k < K; ++k) {
-            const float zk = z[p * K + k];
-            float* row = acc + k * M;
-            for (int64_t j = 0; j < M; ++j) row[j] += zk * gp[j];
-          }
-          float* row_alpha = acc + K * M;
-          float* row_all = acc + (K + 1) * M;
-          const float ap = a[p];
-          for (int64_t j = 0; j < M; ++j) {
-            row_alpha[j] += ap * gp[j];
-            row_all[j] += gp[j];
-          }
-        }
-      }
-    });
+    auto partials = torch::zeros({chunks, K + 2, r.S});
+    backward_kernel(grad.data_ptr<float>(), latent.data_ptr<float>(), alpha.data_ptr<float>(), r, P,
+                    d_latent.data_ptr<float>(), d_alpha.data_ptr<float>(),
+                    partials.data_ptr<float>());
     // Summed in double, chunk by chunk in order.
-    const torch::Tensor sums = partials.to(torch::kFloat64).sum(0);  // [K + 2, M]
+    const torch::Tensor sums = partials.narrow(2, 0, M).to(torch::kFloat64).sum(0);  // [K + 2, M]
     const auto dtype = basis.scalar_type();
     const torch::Tensor d_basis = sums.slice(0, 0, K).t().to(dtype).contiguous();
     // out = ... + alpha m + (1 - alpha) bg.
