@@ -2,13 +2,13 @@
 // model::ssim (LibTorch convolutions, run in double precision here) and
 // (a - b).abs().mean(), values and gradients, on random images of odd sizes
 // and band counts that fill no, one or several band blocks exactly.
-#include <ATen/Parallel.h>
 #include <gtest/gtest.h>
 #include <torch/nn/functional/upsampling.h>
 
 #include <string>
 #include <tuple>
 
+#include "core/threads.h"
 #include "model/ssim.h"
 #include "model/ssim_fused.h"
 
@@ -84,29 +84,42 @@ TEST_P(FusedSsimShapes, ValuesAndGradientsMatchTheLibTorchTwin) {
 }
 
 // Heights and widths from the 11-pixel minimum to a few strips, odd sizes;
-// bands 1, 3 (RGB), 17 (one block and one band), 141 (BaySpec).
+// bands 1, 3 (RGB), 17 (one block and one band), 141 (BaySpec). Widths over
+// 192 columns are cut into column tiles (2 of 101 and 3 of 140 or 139 here),
+// whose windows and gradients must be the whole row's.
 INSTANTIATE_TEST_SUITE_P(Shapes, FusedSsimShapes,
                          ::testing::Values(std::make_tuple(11, 11, 1), std::make_tuple(13, 29, 3),
                                            std::make_tuple(61, 37, 17),
                                            std::make_tuple(23, 19, 141), std::make_tuple(97, 15, 5),
-                                           std::make_tuple(12, 40, 8)));
+                                           std::make_tuple(12, 40, 8), std::make_tuple(14, 201, 3),
+                                           std::make_tuple(26, 418, 17),
+                                           std::make_tuple(11, 418, 141)));
 
-TEST(FusedSsim, SameBitsForAnyThreadCount) {
-  auto [a, b] = image_pair(75, 33, 40, 7);
+void same_bits_for_any_thread_count(int64_t h, int64_t w, int64_t n) {
+  auto [a, b] = image_pair(h, w, n, 7);
+  // The kernel runs on ddhgs's own pool (core/parallel.h), sized here.
   auto run = [&](int threads) {
-    at::set_num_threads(threads);
+    core::configure_threads(threads);
     auto x = a.clone().requires_grad_(true);
     auto v = model::l1_and_ssim(x, b);
     (0.8 * v.l1 + 0.2 * (1 - v.ssim)).backward();
     return std::make_tuple(v.l1.item<float>(), v.ssim.item<float>(), x.grad());
   };
-  const int before = at::get_num_threads();
+  const int before = core::thread_count();
   const auto one = run(1);
-  const auto two = run(2);
-  at::set_num_threads(before);
+  const auto two = run(3);
+  core::configure_threads(before);
   EXPECT_EQ(std::get<0>(one), std::get<0>(two));
   EXPECT_EQ(std::get<1>(one), std::get<1>(two));
   EXPECT_TRUE(torch::equal(std::get<2>(one), std::get<2>(two)));
+}
+
+TEST(FusedSsim, SameBitsForAnyThreadCount) {
+  // One tile, and three column tiles.
+  for (const auto& [h, w, n] : {std::make_tuple(75, 33, 40), std::make_tuple(30, 400, 20)}) {
+    SCOPED_TRACE(std::to_string(w) + " columns");
+    same_bits_for_any_thread_count(h, w, n);
+  }
 }
 
 TEST(FusedSsim, IdenticalAndConstantImages) {
