@@ -144,42 +144,27 @@ void backward_chunk_any(const float* g, const float* z, const float* a, const Ro
   }
 }
 
+// backward_chunk for K latent channels: compiled for kK = 1 .. 8, any other
+// count one row at a time.
+template <int64_t kK = 1>
+void backward_chunk_for(int64_t K, const float* g, const float* z, const float* a, const Rows& r,
+                        int64_t p0, int64_t p1, float* dz, float* da, float* acc) {
+  if constexpr (kK <= 8) {
+    if (K == kK) return backward_chunk<kK>(g, z, a, r, p0, p1, dz, da, acc);
+    return backward_chunk_for<kK + 1>(K, g, z, a, r, p0, p1, dz, da, acc);
+  } else {
+    return backward_chunk_any(g, z, a, r, p0, p1, dz, da, acc);
+  }
+}
+
 void backward_kernel(const float* g, const float* z, const float* a, const Rows& r, int64_t P,
                      float* dz, float* da, float* partials) {
   const int64_t chunks = (P + kChunk - 1) / kChunk;
   const int64_t K = r.K, S = r.S;
   core::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
     for (int64_t chunk = chunk_begin; chunk < chunk_end; ++chunk) {
-      float* acc = partials + chunk * (K + 2) * S;
       const int64_t p0 = chunk * kChunk, p1 = std::min(P, p0 + kChunk);
-      switch (K) {
-        case 1:
-          backward_chunk<1>(g, z, a, r, p0, p1, dz, da, acc);
-          break;
-        case 2:
-          backward_chunk<2>(g, z, a, r, p0, p1, dz, da, acc);
-          break;
-        case 3:
-          backward_chunk<3>(g, z, a, r, p0, p1, dz, da, acc);
-          break;
-        case 4:
-          backward_chunk<4>(g, z, a, r, p0, p1, dz, da, acc);
-          break;
-        case 5:
-          backward_chunk<5>(g, z, a, r, p0, p1, dz, da, acc);
-          break;
-        case 6:
-          backward_chunk<6>(g, z, a, r, p0, p1, dz, da, acc);
-          break;
-        case 7:
-          backward_chunk<7>(g, z, a, r, p0, p1, dz, da, acc);
-          break;
-        case 8:
-          backward_chunk<8>(g, z, a, r, p0, p1, dz, da, acc);
-          break;
-        default:
-          backward_chunk_any(g, z, a, r, p0, p1, dz, da, acc);
-      }
+      backward_chunk_for(K, g, z, a, r, p0, p1, dz, da, partials + chunk * (K + 2) * S);
     }
   });
 }
