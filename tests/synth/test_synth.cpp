@@ -2,12 +2,11 @@
 
 #include <algorithm>
 
-#include <ATen/Parallel.h>
-
 #include <fstream>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/threads.h"
 #include "io/scene/scene.h"
 #include "support/test_support.h"
 #include "synth/generate.h"
@@ -172,12 +171,13 @@ TEST(SynthRender, RenderIsIndependentOfThreadCount) {
   PlantScene scene = PlantScene::build(5, true);
   auto cameras = turntable_rig(scene, small_rig());
   SpectralSetup setup = make_spectral_setup(scene, grid(400, 1000, 8), NoiseModel{});
-  int before = at::get_num_threads();
-  at::set_num_threads(1);
+  // The renderer runs on ddhgs's own pool (core/parallel.h), sized here.
+  const int before = core::thread_count();
+  core::configure_threads(1);
   auto one = render_clean(scene, setup, cameras[1], 2);
-  at::set_num_threads(2);
+  core::configure_threads(3);
   auto two = render_clean(scene, setup, cameras[1], 2);
-  at::set_num_threads(before);
+  core::configure_threads(before);
   EXPECT_TRUE(torch::equal(one, two));
 }
 
