@@ -35,6 +35,7 @@
 #include <cstring>
 #include <vector>
 
+#include "core/float_vec.h"
 #include "core/parallel.h"
 #include "model/ssim.h"
 
@@ -72,24 +73,11 @@ struct Window {
   }
 };
 
-// A vector of kB floats (GCC/Clang vector extension): one AVX-512 register
-// for kB = 16, two AVX2 ones; arithmetic on it is element-wise.
+// A vector of kB bands: one AVX-512 register for kB = 16, two AVX2 ones.
 template <int kB>
-struct VecOf {
-  typedef float type __attribute__((vector_size(sizeof(float) * kB)));
-};
-
-template <typename V>
-inline V load(const float* p) {
-  V v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-
-template <typename V>
-inline void store(float* p, const V& v) {
-  std::memcpy(p, &v, sizeof v);
-}
+using VecOf = core::FloatVec<kB>;
+using core::load_vec;
+using core::store_vec;
 
 // Ring and row buffers of one thread, in vectors of kB bands.
 template <typename V>
@@ -147,7 +135,7 @@ struct Item {
       __builtin_prefetch(b + j * stride + next);
       V x = {}, y = {};
       if (bw == kB) {
-        x = load<V>(a + j * stride), y = load<V>(b + j * stride);
+        x = load_vec<V>(a + j * stride), y = load_vec<V>(b + j * stride);
       } else {
         for (int c = 0; c < bw; ++c) x[c] = a[j * stride + c], y[c] = b[j * stride + c];
       }
@@ -288,7 +276,7 @@ struct Item {
       const V g = (a0 + 2 * m[0] * a1 + m[1] * a2) * inv_m;
       float* dst = out + col * im.bands;
       if (bw == kB) {
-        store(dst, g);
+        store_vec(dst, g);
       } else {
         for (int c = 0; c < bw; ++c) dst[c] = g[c];
       }

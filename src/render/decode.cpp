@@ -5,6 +5,7 @@
 
 #include "core/buffer_pool.h"
 #include "core/error.h"
+#include "core/float_vec.h"
 #include "core/parallel.h"
 #include "core/stage_timer.h"
 
@@ -21,23 +22,22 @@ constexpr int64_t kLanes = 16;
 #else
 constexpr int64_t kLanes = 8;
 #endif
-typedef float Vec __attribute__((vector_size(sizeof(float) * kLanes)));
+using Vec = core::FloatVec<kLanes>::type;
 
 inline Vec load(const float* p) {
-  Vec v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
+  return core::load_vec<Vec>(p);
 }
 
 inline void store(float* p, const Vec& v) {
-  std::memcpy(p, &v, sizeof v);
+  core::store_vec(p, v);
 }
 
-// The first n (< kLanes) floats at p, the rest zero: a pixel's last bands,
-// without reading past its row.
-inline Vec load_tail(const float* p, int64_t n) {
+// Bands j .. j + kLanes - 1 of a row of M: past the row's end (its last
+// vector) zero, without reading beyond it.
+inline Vec load_bands(const float* row, int64_t j, int64_t M) {
+  if (j + kLanes <= M) return load(row + j);
   Vec v = {};
-  std::memcpy(&v, p, size_t(n) * sizeof(float));
+  std::memcpy(&v, row + j, size_t(M - j) * sizeof(float));
   return v;
 }
 
@@ -108,7 +108,7 @@ void backward_chunk(const float* g, const float* z, const float* a, const Rows& 
     const float* zp = z + p * kK;
     Vec dot[kK + 1] = {};
     for (int64_t j = 0; j < M; j += kLanes) {
-      const Vec gv = j + kLanes <= M ? load(gp + j) : load_tail(gp + j, M - j);
+      const Vec gv = load_bands(gp, j, M);
       for (int64_t k = 0; k <= kK; ++k) dot[k] += gv * load(r.row(k) + j);
       for (int64_t k = 0; k < kK; ++k) {
         float* row = acc + k * S + j;
@@ -132,8 +132,7 @@ void backward_chunk_any(const float* g, const float* z, const float* a, const Ro
     const float* gp = g + p * M;
     for (int64_t k = 0; k <= K; ++k) {  // k == K: the alpha row (m - bg)
       Vec dot = {};
-      for (int64_t j = 0; j < M; j += kLanes)
-        dot += (j + kLanes <= M ? load(gp + j) : load_tail(gp + j, M - j)) * load(r.row(k) + j);
+      for (int64_t j = 0; j < M; j += kLanes) dot += load_bands(gp, j, M) * load(r.row(k) + j);
       (k < K ? dz[p * K + k] : da[p]) = lane_sum(dot);
     }
     for (int64_t k = 0; k <= K + 1; ++k) {
