@@ -143,7 +143,10 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--max-gaussians", args->max_gaussians,
                   "Stop densifying at this many (0: no cap)");
   cmd->add_flag("--rgb", args->rgb, "Train on the RGB images as a 3-band scene");
-  cmd->add_option("--cache-mb", args->cache_mb, "Memory budget for decoded views, MiB");
+  cmd->add_option("--cache-mb", args->cache_mb,
+                  "Memory budget for decoded views, MiB (views that need decoding, downscaling, "
+                  "band selection or undistortion; a .npy at the view's own size is read from its "
+                  "file at each use, only the rows a step needs)");
   cmd->add_option("--band-range", args->band_range, "Keep bands within MIN:MAX nm");
   cmd->add_option("--bin", args->bin, "Average groups of this many adjacent bands");
   cmd->add_option("--checkpoint-every", args->checkpoint_every,

@@ -322,12 +322,16 @@ TEST(Dataset, CacheEvictsLeastRecentlyUsed) {
   SceneSpec spec;
   spec.views = 3;
   spec.height = 512;
-  spec.width = 512;  // 512 x 512 x 4 uint8 = exactly 1 MB per view
+  spec.width = 512;
   write_scene(root, spec);
   LoadOptions options;
   options.cache_mb = 2;
+  // Without the 400 nm band a view is not its file as it is (a .npy that is
+  // is never cached: NpyViewsAreReadAtEachUse): 512 x 512 x 3 uint8 per
+  // view, so 2 MB hold two views.
+  options.band_min_nm = 450;
   auto scene = load_scene(root, options);
-  ASSERT_EQ(scene->view_bytes(), size_t(1) << 20);
+  ASSERT_EQ(scene->view_bytes(), size_t(3) << 18);
   scene->image(0);
   scene->image(1);
   scene->image(0);  // 1 is now the least recently used
@@ -339,11 +343,52 @@ TEST(Dataset, CacheEvictsLeastRecentlyUsed) {
   EXPECT_THROW(scene->image(1), core::Error);
 }
 
-TEST(Dataset, ConcurrentReadsAgree) {
-  fs::path root = test::temp_dir("ds_threads");
+// A .npy view that is the view as it is (its size, every band, no
+// undistortion) is read from its file at each use, only the rows a window
+// asks for, and never cached; its images equal the file's samples converted.
+TEST(Dataset, NpyViewsAreReadAtEachUse) {
+  fs::path root = test::temp_dir("ds_direct");
+  SceneSpec spec;
+  spec.views = 3;
+  spec.height = 40;
+  spec.width = 30;
+  write_scene(root, spec);
+  const fs::path file = root / "hyperspectral" / "r_01.npy";
+  torch::manual_seed(6);
+  const torch::Tensor first = torch::rand({40, 30, 4}).to(torch::kHalf);
+  write_npy(file, first);
+  auto scene = load_scene(root);
+  const torch::Tensor drawn = torch::tensor({1, 3}, torch::kInt64);
+  EXPECT_TRUE(scene->image(1).equal(first.to(torch::kFloat)));
+  EXPECT_TRUE(
+      scene->image(1, {4, 7, 25, 31, drawn})
+          .equal(first.slice(0, 7, 31).slice(1, 4, 25).index_select(2, drawn).to(torch::kFloat)));
+  EXPECT_TRUE(scene->image(1, {0, 39, 0, 0, {}}).equal(first.slice(0, 39).to(torch::kFloat)));
+  // Read again at each use: a changed file is seen, a removed one is an error.
+  const torch::Tensor second = torch::rand({40, 30, 4}).to(torch::kHalf);
+  write_npy(file, second);
+  EXPECT_TRUE(scene->image(1, {0, 10, 0, 20, {}}).equal(second.slice(0, 10, 20).to(torch::kFloat)));
+  fs::remove(file);
+  EXPECT_THROW(scene->image(1), core::Error);
+  // Rows outside the view are the same error as for a cached view.
+  EXPECT_TRUE(contains(error_of([&] {
+                         scene->image(0, {0, 30, 0, 41, {}});
+                       }),
+                       "image window lies outside the view"));
+  EXPECT_TRUE(contains(error_of([&] {
+                         scene->image(0, {0, 5, 0, 5, {}});
+                       }),
+                       "image window lies outside the view"));
+}
+
+// Downscaled views decode through the cache; whole ones are read directly.
+class ConcurrentReads : public ::testing::TestWithParam<int> {};
+
+TEST_P(ConcurrentReads, Agree) {
+  fs::path root = test::temp_dir("ds_threads_" + std::to_string(GetParam()));
   write_scene(root, {});
   LoadOptions options;
-  options.downscale = 2;
+  options.downscale = GetParam();
   auto scene = load_scene(root, options);
   std::vector<torch::Tensor> expected;
   for (int i = 0; i < 10; ++i) expected.push_back(scene->image(i));
@@ -361,6 +406,7 @@ TEST(Dataset, ConcurrentReadsAgree) {
   for (auto& th : threads) th.join();
   EXPECT_EQ(mismatches.load(), 0);
 }
+INSTANTIATE_TEST_SUITE_P(Dataset, ConcurrentReads, ::testing::Values(1, 2));
 
 TEST(Dataset, CleanGroundTruth) {
   fs::path root = test::temp_dir("ds_clean");

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <limits>
 
 #include "core/error.h"
 #include "cube_test_util.h"
@@ -93,6 +94,54 @@ TEST(Npy, MatchesNumpy) {
   Cube flat = read_cube(dir / "flat.npy");
   EXPECT_EQ(flat.data.sizes(), (std::vector<int64_t>{3, 4, 1}));
   EXPECT_EQ(flat.data[2][3][0].item<int>(), 11);
+
+  // A row range of any of NumPy's files equals the rows of the whole read:
+  // the offset and byte order of each version, and Fortran order's fallback.
+  for (const std::string name :
+       {"u1", "u2", "i2", "i4", "f2", "f4", "f8", "big", "fortran", "v2"}) {
+    const fs::path path = dir / (name + ".npy");
+    const Cube whole = read_cube(path, {BandLayout::BandsLast});
+    const Cube row = read_cube_rows(path, 1, 2, {BandLayout::BandsLast});
+    EXPECT_EQ(row.type, whole.type) << name;
+    EXPECT_TRUE(torch::equal(row.data, whole.data.slice(0, 1, 2))) << name;
+  }
+  const Cube flat_rows = read_cube_rows(dir / "flat.npy", 1, 3);
+  EXPECT_TRUE(torch::equal(flat_rows.data, flat.data.slice(0, 1, 3)));
+}
+
+// read_cube_rows reads only the rows of a C-order, bands-last array and
+// falls back to a whole read for any other layout; either way its samples
+// are the whole read's rows, bit for bit, and bad ranges name the file.
+TEST(Npy, RowRangesEqualTheWholeReadsRows) {
+  fs::path dir = test::temp_dir("npy_rows");
+  torch::manual_seed(3);
+  const torch::Tensor u16 = torch::randint(0, 65536, {9, 7, 5}).to(torch::kInt32).to(torch::kInt16);
+  write_npy(dir / "u16.npy", u16, SampleType::U16);
+  write_npy(dir / "f16.npy", torch::rand({9, 7, 5}).to(torch::kHalf));
+  write_npy(dir / "f32.npy", torch::rand({9, 7, 5}));
+  write_npy(dir / "bhw.npy", torch::rand({3, 9, 11}));  // bands first: read whole
+  for (const std::string name : {"u16", "f16", "f32", "bhw"}) {
+    const fs::path path = dir / (name + ".npy");
+    const Cube whole = read_cube(path);
+    for (auto [y0, y1] : {std::pair{0, 9}, std::pair{0, 1}, std::pair{4, 9}, std::pair{3, 6}}) {
+      const Cube rows = read_cube_rows(path, y0, y1);
+      EXPECT_EQ(rows.type, whole.type) << name;
+      EXPECT_TRUE(rows.data.is_contiguous()) << name;
+      EXPECT_TRUE(torch::equal(rows.data, whole.data.slice(0, y0, y1))) << name << " " << y0;
+    }
+    for (auto [y0, y1] : {std::pair{-1, 2}, std::pair{3, 3}, std::pair{5, 10}})
+      expect_error_naming([&, y0 = y0, y1 = y1] { read_cube_rows(path, y0, y1); }, name + ".npy",
+                          "lie outside the cube's 9 rows");
+  }
+  // Other formats: a whole read, sliced.
+  const torch::Tensor envi = torch::rand({6, 4, 3});
+  write_envi(dir / "c.hdr", envi, {500, 600, 700});
+  EXPECT_TRUE(torch::equal(read_cube_rows(dir / "c.hdr", 2, 5).data, envi.slice(0, 2, 5)));
+  // A non-finite sample in the rows read is an error as in a whole read.
+  torch::Tensor bad = torch::rand({9, 7, 5});
+  bad[6][2][1] = std::numeric_limits<float>::quiet_NaN();
+  write_npy(dir / "nan.npy", bad);
+  expect_error_naming([&] { read_cube_rows(dir / "nan.npy", 5, 8); }, "nan.npy", "NaN");
 }
 
 TEST(Npy, BandsFirstByFlagAndByDetection) {

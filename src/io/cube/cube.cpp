@@ -127,6 +127,12 @@ torch::Tensor transpose_last_two(const torch::Tensor& data) {
   return out;
 }
 
+void require_rows(const fs::path& path, int64_t height, int64_t y0, int64_t y1) {
+  if (y0 < 0 || y0 >= y1 || y1 > height)
+    throw core::Error(path, "rows " + std::to_string(y0) + " to " + std::to_string(y1) +
+                                " lie outside the cube's " + std::to_string(height) + " rows");
+}
+
 torch::Tensor to_bands_last(const torch::Tensor& data, BandLayout layout, const fs::path& path) {
   if (data.dim() == 2) return data.unsqueeze(2).contiguous();
   if (data.dim() != 3)
@@ -234,6 +240,14 @@ Cube read_cube(const fs::path& path, const CubeReadOptions& options) {
       return detail::read_image_cube(path);
   }
   throw core::Error(path, "unknown cube format");
+}
+
+Cube read_cube_rows(const fs::path& path, int64_t y0, int64_t y1, const CubeReadOptions& options) {
+  if (format_of(path) == Format::Npy) return detail::read_npy_rows(path, y0, y1, options);
+  Cube cube = read_cube(path, options);
+  detail::require_rows(path, cube.height(), y0, y1);
+  cube.data = cube.data.slice(0, y0, y1).contiguous();
+  return cube;
 }
 
 CubeInfo probe_cube(const fs::path& path, const CubeReadOptions& options) {

@@ -49,6 +49,12 @@ struct Cube {
 // input: missing, empty, truncated, wrong magic, unsupported dtype, NaN/Inf.
 Cube read_cube(const std::filesystem::path& path, const CubeReadOptions& options = {});
 
+// Rows [y0, y1) of the cube at path: equal to slicing read_cube's data
+// (same type, metadata and checks, over those rows). A C-order, bands-last
+// .npy reads only their bytes; any other file is read whole and sliced.
+Cube read_cube_rows(const std::filesystem::path& path, int64_t y0, int64_t y1,
+                    const CubeReadOptions& options = {});
+
 // Reads only the header: shape [H, W, B], type and wavelengths, no samples.
 struct CubeInfo {
   int64_t height = 0, width = 0, bands = 0;

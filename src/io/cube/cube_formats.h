@@ -8,6 +8,12 @@ namespace ddhgs::io::detail {
 
 Cube read_npy(const std::filesystem::path& path, const CubeReadOptions& options);
 CubeInfo probe_npy(const std::filesystem::path& path, const CubeReadOptions& options);
+// Rows [y0, y1) of a .npy cube, read alone when the file stores them as one
+// run of bytes (C order, bands last), else read whole and sliced.
+Cube read_npy_rows(const std::filesystem::path& path, int64_t y0, int64_t y1,
+                   const CubeReadOptions& options);
+// Throws core::Error naming path unless 0 <= y0 < y1 <= height.
+void require_rows(const std::filesystem::path& path, int64_t height, int64_t y0, int64_t y1);
 
 Cube read_pt(const std::filesystem::path& path, const CubeReadOptions& options);
 

@@ -197,6 +197,40 @@ Cube read_npy(const fs::path& path, const CubeReadOptions& options) {
   return cube;
 }
 
+Cube read_npy_rows(const fs::path& path, int64_t y0, int64_t y1, const CubeReadOptions& options) {
+  OpenNpy npy;
+  open_npy(path, &npy);
+  data_bytes(npy, path);
+  const NpyHeader& h = npy.header;
+  const std::vector<int64_t>& s = h.shape;
+  // Only a C-order [H, W, B] or [H, W] array holds a row range as one run of
+  // bytes; any other layout is read whole.
+  const bool rows_contiguous =
+      !h.fortran_order && (s.size() == 2 || !bands_first(s[0], s[1], s[2], options.layout));
+  if (!rows_contiguous) {
+    Cube cube = read_npy(path, options);
+    require_rows(path, cube.height(), y0, y1);
+    cube.data = cube.data.slice(0, y0, y1).contiguous();
+    return cube;
+  }
+  require_rows(path, s[0], y0, y1);
+  std::vector<int64_t> shape = s;
+  shape[0] = y1 - y0;
+  const uint64_t row_bytes =
+      uint64_t(s[1]) * (s.size() == 3 ? uint64_t(s[2]) : 1) * bytes_per_sample(h.type);
+  const uint64_t bytes = row_bytes * uint64_t(y1 - y0);
+  torch::Tensor data = core::pooled_empty(shape, tensor_dtype(h.type));
+  npy.in.seekg(std::streamoff(h.data_offset + row_bytes * uint64_t(y0)));
+  npy.in.read(static_cast<char*>(data.data_ptr()), std::streamsize(bytes));
+  if (uint64_t(npy.in.gcount()) != bytes) throw core::Error(path, "read failed (truncated data)");
+  if (h.big_endian) swap_bytes(data);
+  Cube cube;
+  cube.type = h.type;
+  cube.data = data.dim() == 2 ? data.unsqueeze(2) : data;
+  require_finite(cube.data, path);
+  return cube;
+}
+
 CubeInfo probe_npy(const fs::path& path, const CubeReadOptions& options) {
   OpenNpy npy;
   open_npy(path, &npy);

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/parallel.h"
+#include "core/text.h"
 #include "io/scene/scene.h"
 
 namespace ddhgs::io {
@@ -174,6 +175,30 @@ Cube Scene::load_view(const fs::path& path, const View& view) const {
   return out;
 }
 
+bool Scene::direct_view(const fs::path& path, const View& view) const {
+  const std::string key = path.string();
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = direct_.find(key);
+    if (it != direct_.end()) return it->second;
+  }
+  bool direct = core::lower(path.extension().string()) == ".npy" && !view.undistortion &&
+                view.file_bands.empty() && std::max(options.bin, 1) == 1 &&
+                is_identity(band_index, source_bands);
+  if (direct) {
+    try {
+      const CubeInfo info = probe_cube(path, CubeReadOptions{options.layout});
+      direct = info.height == view.camera.intrinsics.height &&
+               info.width == view.camera.intrinsics.width && info.bands == source_bands;
+    } catch (const core::Error&) {
+      direct = false;  // load_view reads it and names the problem
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  direct_.emplace(key, direct);
+  return direct;
+}
+
 Cube Scene::cached_view(const fs::path& path, const View& view) const {
   std::string key = path.string();
   {
@@ -230,13 +255,26 @@ torch::Tensor Scene::image(int view, const ImageWindow& window) const {
   core::require(view >= 0 && view < int(views.size()), root,
                 "view index " + std::to_string(view) + " out of range");
   const View& v = views[size_t(view)];
-  Cube cube = cached_view(v.data_path, v);
+  Cube cube;
+  int64_t first_row = 0;  // the view's row that is cube's row 0
+  if (direct_view(v.data_path, v)) {
+    // The file is the view as it is: only the window's rows are read.
+    const int64_t height = v.camera.intrinsics.height;
+    const int64_t y1 = window.y1 > 0 ? window.y1 : height;
+    core::require(window.y0 >= 0 && window.y0 < y1 && y1 <= height, v.data_path,
+                  "image window lies outside the view");
+    cube = read_cube_rows(v.data_path, window.y0, y1, CubeReadOptions{options.layout});
+    first_row = window.y0;
+  } else {
+    cube = cached_view(v.data_path, v);
+  }
   const int64_t x1 = window.x1 > 0 ? window.x1 : cube.width();
-  const int64_t y1 = window.y1 > 0 ? window.y1 : cube.height();
-  core::require(window.x0 >= 0 && window.y0 >= 0 && window.x0 < x1 && window.y0 < y1 &&
-                    x1 <= cube.width() && y1 <= cube.height(),
+  const int64_t y1 = window.y1 > 0 ? window.y1 : first_row + cube.height();
+  core::require(window.x0 >= 0 && window.y0 >= first_row && window.x0 < x1 && window.y0 < y1 &&
+                    x1 <= cube.width() && y1 <= first_row + cube.height(),
                 v.data_path, "image window lies outside the view");
-  torch::Tensor data = cube.data.slice(0, window.y0, y1).slice(1, window.x0, x1);
+  torch::Tensor data =
+      cube.data.slice(0, window.y0 - first_row, y1 - first_row).slice(1, window.x0, x1);
   if (window.bands.defined()) {
     const torch::Tensor& bands = window.bands;
     const bool valid = bands.scalar_type() == torch::kInt64 && bands.dim() == 1 &&
@@ -273,7 +311,8 @@ torch::Tensor Scene::clean_image(int view) const {
                 "view index " + std::to_string(view) + " out of range");
   const View& v = views[size_t(view)];
   if (v.clean_path.empty()) return {};
-  Cube cube = cached_view(v.clean_path, v);
+  Cube cube =
+      direct_view(v.clean_path, v) ? load_view(v.clean_path, v) : cached_view(v.clean_path, v);
   // A clean cube stored in another type (e.g. float beside uint8 noisy
   // cubes) is scaled by its own type's default.
   return cube_to_float(cube, cube.type == stored_type ? scale : 0);

@@ -34,7 +34,7 @@ struct LoadOptions {
   double band_max_nm = 1e9;
   int bin = 1;             // average groups of this many adjacent bands
   int band_step = 1;       // then keep every band_step-th (held-out bands: ddhgs eval)
-  size_t cache_mb = 4096;  // memory budget for decoded views
+  size_t cache_mb = 4096;  // memory budget for decoded views (not for direct .npy views)
   BandLayout layout = BandLayout::Auto;
   std::optional<double> scale;  // overrides the dataset's integer scale
 };
@@ -109,12 +109,19 @@ class Scene {
   // (area averaging when the file is at full resolution), band-selected,
   // binned and undistorted, in its stored type.
   Cube load_view(const std::filesystem::path& path, const View& view) const;
+  // True when the file at path is the view as load_view returns it (a .npy
+  // at the view's size, every band in order, no undistortion). Such views
+  // are read from the file on every use, only the rows asked for, and never
+  // cached: the system's page cache holds the file, memory the system can
+  // reclaim, where a copy in the cache would hold it for the whole run.
+  bool direct_view(const std::filesystem::path& path, const View& view) const;
   // Cached load_view; evicts least recently used entries beyond cache_mb.
   Cube cached_view(const std::filesystem::path& path, const View& view) const;
   mutable std::mutex mutex_;
   mutable std::list<std::string> lru_;  // most recently used first
   mutable std::unordered_map<std::string, Cube> cache_;
   mutable size_t cached_bytes_ = 0;
+  mutable std::unordered_map<std::string, bool> direct_;  // direct_view, by path
 };
 
 // Detects the layout and reads metadata (not the cubes). Throws core::Error on
