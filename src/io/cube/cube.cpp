@@ -133,6 +133,12 @@ void require_rows(const fs::path& path, int64_t height, int64_t y0, int64_t y1) 
                                 " lie outside the cube's " + std::to_string(height) + " rows");
 }
 
+Cube slice_rows(Cube cube, const fs::path& path, int64_t y0, int64_t y1) {
+  require_rows(path, cube.height(), y0, y1);
+  cube.data = cube.data.slice(0, y0, y1).contiguous();
+  return cube;
+}
+
 torch::Tensor to_bands_last(const torch::Tensor& data, BandLayout layout, const fs::path& path) {
   if (data.dim() == 2) return data.unsqueeze(2).contiguous();
   if (data.dim() != 3)
@@ -244,10 +250,7 @@ Cube read_cube(const fs::path& path, const CubeReadOptions& options) {
 
 Cube read_cube_rows(const fs::path& path, int64_t y0, int64_t y1, const CubeReadOptions& options) {
   if (format_of(path) == Format::Npy) return detail::read_npy_rows(path, y0, y1, options);
-  Cube cube = read_cube(path, options);
-  detail::require_rows(path, cube.height(), y0, y1);
-  cube.data = cube.data.slice(0, y0, y1).contiguous();
-  return cube;
+  return detail::slice_rows(read_cube(path, options), path, y0, y1);
 }
 
 CubeInfo probe_cube(const fs::path& path, const CubeReadOptions& options) {

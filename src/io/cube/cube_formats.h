@@ -14,6 +14,8 @@ Cube read_npy_rows(const std::filesystem::path& path, int64_t y0, int64_t y1,
                    const CubeReadOptions& options);
 // Throws core::Error naming path unless 0 <= y0 < y1 <= height.
 void require_rows(const std::filesystem::path& path, int64_t height, int64_t y0, int64_t y1);
+// Rows [y0, y1) of a whole cube, contiguous (require_rows first).
+Cube slice_rows(Cube cube, const std::filesystem::path& path, int64_t y0, int64_t y1);
 
 Cube read_pt(const std::filesystem::path& path, const CubeReadOptions& options);
 

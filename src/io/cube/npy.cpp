@@ -207,12 +207,7 @@ Cube read_npy_rows(const fs::path& path, int64_t y0, int64_t y1, const CubeReadO
   // bytes; any other layout is read whole.
   const bool rows_contiguous =
       !h.fortran_order && (s.size() == 2 || !bands_first(s[0], s[1], s[2], options.layout));
-  if (!rows_contiguous) {
-    Cube cube = read_npy(path, options);
-    require_rows(path, cube.height(), y0, y1);
-    cube.data = cube.data.slice(0, y0, y1).contiguous();
-    return cube;
-  }
+  if (!rows_contiguous) return slice_rows(read_npy(path, options), path, y0, y1);
   require_rows(path, s[0], y0, y1);
   std::vector<int64_t> shape = s;
   shape[0] = y1 - y0;
