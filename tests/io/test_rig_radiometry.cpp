@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 #include "core/error.h"
 #include "support/error_text.h"
@@ -156,7 +157,8 @@ TEST(RigRadiometry, ReflectanceThroughThePanelAndTheDls) {
     write_rig_band_image(f, radiance_to_counts(f, truth * float(irradiance[i - 1] / kPi)));
     flight.bands.push_back(read_rig_band_image(f.file));
   }
-  const std::vector<ReflectanceCalibration> calibration = panel_calibration(panel, albedo);
+  const std::vector<ReflectanceCalibration> calibration =
+      panel_calibration(panel, flight.bands, albedo);
   ASSERT_EQ(calibration.size(), 3u);
   for (int i = 0; i < 3; ++i) {
     EXPECT_EQ(calibration[i].source, "panel");
@@ -183,24 +185,108 @@ TEST(RigRadiometry, PanelErrorsNameTheFile) {
   RigBandImage p = band(dir / "PANL_000_1.tif", 1, 0.0008, 100);
   write_rig_band_image(p, torch::full({30, 40}, 65535.0));
   const RigCapture panel{"panel", {read_rig_band_image(p.file)}};
-  const std::string count = error_of([&] { panel_calibration(panel, {0.5, 0.5}); });
+  const std::string count = error_of([&] { panel_calibration(panel, panel.bands, {0.5, 0.5}); });
   EXPECT_NE(count.find("PANL_000_1.tif"), std::string::npos) << count;
   EXPECT_NE(count.find("1 band cameras but 2 panel albedo"), std::string::npos) << count;
-  const std::string range = error_of([&] { panel_calibration(panel, {1.5}); });
+  const std::string range = error_of([&] { panel_calibration(panel, panel.bands, {1.5}); });
   EXPECT_NE(range.find("not in (0, 1]"), std::string::npos) << range;
-  const std::string saturated = error_of([&] { panel_calibration(panel, {0.5}); });
+  const std::string saturated = error_of([&] { panel_calibration(panel, panel.bands, {0.5}); });
   EXPECT_NE(saturated.find("PANL_000_1.tif"), std::string::npos) << saturated;
   EXPECT_NE(saturated.find("saturated"), std::string::npos) << saturated;
   write_rig_band_image(p, torch::full({30, 40}, 100.0));  // under the black level
   const RigCapture dark{"panel", {read_rig_band_image(p.file)}};
-  EXPECT_NE(error_of([&] { panel_calibration(dark, {0.5}); }).find("no signal"), std::string::npos);
+  EXPECT_NE(error_of([&] { panel_calibration(dark, dark.bands, {0.5}); }).find("no signal"),
+            std::string::npos);
   // A flight camera the panel capture lacks.
   RigBandImage other = band(dir / "IMG_0001_2.tif", 2, 0.001, 100);
-  const auto calibration = std::vector<ReflectanceCalibration>{{1, "Blue", 1.0, "panel", 1, 1}};
+  ReflectanceCalibration blue;
+  blue.rig_index = 1;
+  blue.band = "Blue";
+  blue.centre_nm = 475;
+  blue.factor = 1;
+  blue.source = "panel";
+  const std::vector<ReflectanceCalibration> calibration = {blue};
   EXPECT_NE(error_of([&] {
               reflectance_calibration(other, calibration);
             }).find("not in the panel capture"),
             std::string::npos);
+}
+
+// Panel files are matched to the flight's cameras by band, not by index: a
+// panel capture whose Blue and Green files carry each other's camera numbers
+// still calibrates Blue with the Blue panel.
+TEST(RigRadiometry, PanelBandsMatchByNameNotIndex) {
+  const fs::path dir = test::temp_dir("rig_radiometry_swapped");
+  const double irradiance[] = {0.9, 1.3};
+  RigCapture panel{"panel", {}};
+  std::vector<RigBandImage> cameras;
+  for (int i = 1; i <= 2; ++i) {
+    RigBandImage p = band(dir / ("PANL_000_" + std::to_string(i) + ".tif"), i, 0.0008, 100);
+    p.rig_index = 3 - i;  // swapped
+    write_rig_band_image(
+        p, radiance_to_counts(p, torch::full({30, 40}, float(0.5 * irradiance[i - 1] / kPi))));
+    panel.bands.push_back(read_rig_band_image(p.file));
+    cameras.push_back(band(dir / ("IMG_0001_" + std::to_string(i) + ".tif"), i, 0.001, 100));
+  }
+  const std::vector<ReflectanceCalibration> calibration =
+      panel_calibration(panel, cameras, {0.5, 0.5});
+  ASSERT_EQ(calibration.size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(calibration[size_t(i)].band, cameras[size_t(i)].band_name);
+    EXPECT_NEAR(calibration[size_t(i)].irradiance, irradiance[i], 2e-3 * irradiance[i]);
+    EXPECT_EQ(reflectance_calibration(cameras[size_t(i)], calibration).panel_file,
+              panel.bands[size_t(i)].file);
+  }
+  // A band the panel capture lacks is named with what it holds.
+  RigBandImage red = band(dir / "IMG_0001_3.tif", 3, 0.001, 100);
+  const std::string missing = error_of([&] { panel_calibration(panel, {red}, {0.5}); });
+  EXPECT_NE(missing.find("band Red (668 nm) has no image in the panel capture"), std::string::npos)
+      << missing;
+}
+
+// Every value the radiometry uses is range-checked as the file is read: one
+// error naming the file, the tag and the value.
+TEST(RigRadiometry, ImplausibleMetadataIsNamed) {
+  const fs::path dir = test::temp_dir("rig_radiometry_implausible");
+  struct Case {
+    const char* name;
+    std::function<void(RigBandImage&)> edit;
+    std::vector<std::string> said;
+  };
+  const std::vector<Case> cases = {
+      {"negative_wavelength",
+       [](RigBandImage& b) { b.centre_nm = -5; },
+       {"CentralWavelength", "-5"}},
+      {"zero_wavelength", [](RigBandImage& b) { b.centre_nm = 0; }, {"CentralWavelength", "0"}},
+      {"zero_a1",
+       [](RigBandImage& b) { b.radiometry.calibration[0] = 0; },
+       {"RadiometricCalibration a1", "is 0"}},
+      {"negative_a1",
+       [](RigBandImage& b) { b.radiometry.calibration[0] = -3e-4; },
+       {"RadiometricCalibration a1", "-0.0003"}},
+      {"vignetting_negative",
+       [](RigBandImage& b) { b.radiometry.vignetting_polynomial = {-0.1}; },
+       {"VignettingPolynomial", "negative"}},
+      {"black_level_at_range",
+       [](RigBandImage& b) { b.radiometry.black_level = 65535; },
+       {"BlackLevel", "65535", "16-bit"}},
+      {"tiny_irradiance",
+       [](RigBandImage& b) { b.radiometry.irradiance = 1e-300; },
+       {"SpectralIrradiance", "1e-300"}},
+      {"huge_exposure",
+       [](RigBandImage& b) { b.radiometry.exposure_s = 1e9; },
+       {"ExposureTime", "1e+09"}},
+  };
+  for (const Case& c : cases) {
+    RigBandImage b = band(dir / (std::string(c.name) + "_1.tif"), 1, 0.001, 100);
+    c.edit(b);
+    write_rig_band_image(b, torch::full({b.height, b.width}, 9000.0));
+    const std::string message = error_of([&] { read_rig_band_image(b.file); });
+    EXPECT_NE(message.find(b.file.string()), std::string::npos) << c.name << ": " << message;
+    for (const std::string& word : c.said)
+      EXPECT_NE(message.find(word), std::string::npos) << c.name << ": " << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  }
 }
 
 }  // namespace

@@ -5,12 +5,14 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <map>
 #include <set>
 
 #include "core/error.h"
 #include "core/text.h"
 #include "io/cube/tiff_open.h"
+#include "io/rig/sun.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
@@ -127,9 +129,59 @@ double real_tag(TIFF* tif, uint32_t tag) {
   return TIFFGetField(tif, tag, &value) == 1 ? value : 0;
 }
 
+// An ASCII tag of the current directory ("" if absent).
+std::string text_tag(TIFF* tif, uint32_t tag) {
+  const char* value = nullptr;
+  return TIFFGetField(tif, tag, &value) == 1 && value ? std::string(value) : std::string();
+}
+
+// "2017:10:19 20:40:39" and sub-seconds "200173789" as UTC seconds since
+// 1970; false when the text is not such a time.
+bool exif_time(const std::string& text, const std::string& subsec, double* seconds) {
+  std::tm t{};
+  if (std::sscanf(text.c_str(), "%d:%d:%d %d:%d:%d", &t.tm_year, &t.tm_mon, &t.tm_mday, &t.tm_hour,
+                  &t.tm_min, &t.tm_sec) != 6 ||
+      t.tm_year < 1970 || t.tm_mon < 1 || t.tm_mon > 12 || t.tm_mday < 1 || t.tm_mday > 31)
+    return false;
+  t.tm_year -= 1900;
+  t.tm_mon -= 1;
+  *seconds = double(timegm(&t));
+  const std::string digits = trim(subsec);
+  if (!digits.empty() && digits.find_first_not_of("0123456789") == std::string::npos)
+    *seconds += std::strtod(("0." + digits).c_str(), nullptr);
+  return true;
+}
+
+// A rational array tag of the GPS directory (degrees, minutes, seconds), in
+// whichever width this libtiff hands it back.
+bool gps_triple(TIFF* tif, uint32_t tag, double out[3]) {
+  const TIFFField* field = TIFFFieldWithTag(tif, tag);
+  if (!field) return false;
+  void* values = nullptr;
+  if (TIFFGetField(tif, tag, &values) != 1 || !values) return false;
+  for (int i = 0; i < 3; ++i)
+    out[i] = TIFFFieldSetGetSize(field) == 8 ? static_cast<const double*>(values)[i]
+                                             : double(static_cast<const float*>(values)[i]);
+  return true;
+}
+
+// The GPS directory: latitude, longitude (signed by their references) and
+// altitude. Leaves the handle in the GPS directory.
+void read_gps(TIFF* tif, uint64_t offset, RigBandImage* image) {
+  if (offset == 0 || TIFFReadGPSDirectory(tif, offset) != 1) return;
+  double lat[3], lon[3];
+  if (!gps_triple(tif, GPSTAG_LATITUDE, lat) || !gps_triple(tif, GPSTAG_LONGITUDE, lon)) return;
+  image->latitude_deg = lat[0] + lat[1] / 60 + lat[2] / 3600;
+  image->longitude_deg = lon[0] + lon[1] / 60 + lon[2] / 3600;
+  if (core::lower(text_tag(tif, GPSTAG_LATITUDEREF)) == "s") image->latitude_deg *= -1;
+  if (core::lower(text_tag(tif, GPSTAG_LONGITUDEREF)) == "w") image->longitude_deg *= -1;
+  image->altitude_m = real_tag(tif, GPSTAG_ALTITUDE);
+  image->has_position = true;
+}
+
 // EXIF: BlackLevel in the main directory (a DNG tag, as MicaSense writes
-// it), ExposureTime, ISOSpeed and FocalPlaneXResolution in the EXIF
-// directory. Leaves the handle in the EXIF directory.
+// it), ExposureTime, ISOSpeed, FocalLength, FocalPlaneXResolution and the
+// time in the EXIF directory, the position in the GPS directory.
 void read_exif(TIFF* tif, RigBandImage* image) {
   RigRadiometry* r = &image->radiometry;
   uint16_t count = 0;
@@ -140,12 +192,18 @@ void read_exif(TIFF* tif, RigBandImage* image) {
     r->black_level = sum / count;
     r->has_black_level = true;
   }
-  uint64_t exif_offset = 0;
+  uint64_t exif_offset = 0, gps_offset = 0;
+  if (TIFFGetField(tif, TIFFTAG_GPSIFD, &gps_offset) != 1) gps_offset = 0;
   if (TIFFGetField(tif, TIFFTAG_EXIFIFD, &exif_offset) != 1 || exif_offset == 0 ||
-      TIFFReadEXIFDirectory(tif, exif_offset) != 1)
+      TIFFReadEXIFDirectory(tif, exif_offset) != 1) {
+    read_gps(tif, gps_offset, image);
     return;
+  }
   r->exposure_s = real_tag(tif, EXIFTAG_EXPOSURETIME);
   image->px_per_mm = real_tag(tif, EXIFTAG_FOCALPLANEXRESOLUTION);
+  image->exif_focal_length_mm = real_tag(tif, EXIFTAG_FOCALLENGTH);
+  image->has_time = exif_time(text_tag(tif, EXIFTAG_DATETIMEORIGINAL),
+                              text_tag(tif, EXIFTAG_SUBSECTIME), &image->utc_seconds);
   uint32_t iso = 0;
   if (TIFFGetField(tif, EXIFTAG_ISOSPEED, &iso) == 1 && iso > 0) {
     r->iso_speed = iso;
@@ -155,6 +213,7 @@ void read_exif(TIFF* tif, RigBandImage* image) {
     if (TIFFGetField(tif, EXIFTAG_ISOSPEEDRATINGS, &n, &ratings) == 1 && n > 0 && ratings)
       r->iso_speed = ratings[0];
   }
+  read_gps(tif, gps_offset, image);
 }
 
 // XMP radiometry: calibration, vignetting and the DLS irradiance, scaled to
@@ -182,10 +241,160 @@ void read_xmp_radiometry(const std::string& xmp, const fs::path& file, RigRadiom
     if (!value) continue;
     const double irradiance = number(*value, file, tag) * scale;
     if (irradiance <= 0) continue;  // a DLS that did not measure
-    r->irradiance = irradiance;
+    r->irradiance = r->irradiance_raw = irradiance;
     r->irradiance_tag = tag;
+    r->irradiance_correction = horizontal ? "none: the sensor reports irradiance on level ground"
+                                          : "none: the file lacks the time, position or the "
+                                            "sensor's attitude (uncorrected DLS reading)";
     break;
   }
+}
+
+// A DLS 1 reading on level ground (io/rig/sun.h), where the file gives what
+// the correction needs.
+void correct_dls1(RigBandImage* image) {
+  RigRadiometry& r = image->radiometry;
+  if (r.irradiance_tag == "HorizontalIrradiance" || r.irradiance <= 0 || !image->has_position ||
+      !image->has_time || image->dls_pose_rad.size() != 3)
+    return;
+  const SunPosition sun =
+      sun_position(image->latitude_deg, image->longitude_deg, image->utc_seconds);
+  const auto to_sun = sun_direction_ned(sun);
+  const auto normal =
+      sensor_normal_ned(image->dls_pose_rad[0], image->dls_pose_rad[1], image->dls_pose_rad[2]);
+  const double cosine = to_sun[0] * normal[0] + to_sun[1] * normal[1] + to_sun[2] * normal[2];
+  const double theta = std::acos(std::clamp(cosine, -1.0, 1.0));
+  const double level = dls1_horizontal_irradiance(r.irradiance_raw, theta, sun.elevation);
+  char note[200];
+  if (!(level > 0) || sun.elevation <= 0) {
+    std::snprintf(note, sizeof note,
+                  "none: the sun stood %.1f deg above the horizon, %.1f deg off the sensor "
+                  "(uncorrected DLS reading)",
+                  sun.elevation * 180 / 3.14159265358979323846,
+                  theta * 180 / 3.14159265358979323846);
+    r.irradiance_correction = note;
+    return;
+  }
+  r.irradiance = level;
+  std::snprintf(note, sizeof note,
+                "DLS 1 to level ground: sun %.2f deg high, %.2f deg off the sensor, Fresnel "
+                "transmission %.4f, direct:diffuse 6:1",
+                sun.elevation * 180 / 3.14159265358979323846, theta * 180 / 3.14159265358979323846,
+                dls_transmission(theta));
+  r.irradiance_correction = note;
+}
+
+std::string value_text(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g", v);
+  return text;
+}
+
+// The focal length's unit where the file has no PerspectiveFocalLengthUnits.
+void decide_focal_units(RigBandImage* image) {
+  const double f = image->focal_length_mm;
+  if (f <= 0) return;
+  if (image->exif_focal_length_mm > 0 && image->px_per_mm > 0) {
+    const double as_mm = std::abs(f / image->exif_focal_length_mm - 1);
+    const double as_px = std::abs(f / (image->exif_focal_length_mm * image->px_per_mm) - 1);
+    image->focal_length_units = as_mm < as_px ? "mm" : "px";
+    image->focal_units_from = "EXIF FocalLength";
+    return;
+  }
+  // Too short to be pixels (under a tenth of the image's width) when a
+  // resolution can put it in pixels: millimetres.
+  const bool mm = f < 0.1 * double(image->width) && image->px_per_mm > 0;
+  image->focal_length_units = mm ? "mm" : "px";
+  image->focal_units_from = "its size (no units tag, no EXIF FocalLength)";
+}
+
+// Every value the radiometry or the geometry uses, in range.
+void check_metadata(const RigBandImage& b) {
+  auto bad = [&](const std::string& tag, double value, const std::string& why) {
+    throw core::Error(b.file, tag + " is " + value_text(value) + ": " + why);
+  };
+  if (!(b.centre_nm >= 100 && b.centre_nm <= 20000))
+    bad("XMP CentralWavelength", b.centre_nm, "not a wavelength (expected 100 to 20000 nm)");
+  if (!(b.fwhm_nm > 0 && b.fwhm_nm < b.centre_nm))
+    bad("XMP WavelengthFWHM", b.fwhm_nm, "not a bandwidth (expected above 0 nm, below the centre)");
+  if (b.rig_index > 64) bad("XMP RigCameraIndex", b.rig_index, "not a camera of a rig (0 to 64)");
+  if (b.bits < 1 || b.bits > 32)
+    bad("TIFF BitsPerSample", b.bits, "not a sensor's bit depth (1 to 32)");
+  const RigRadiometry& r = b.radiometry;
+  const double full_scale = std::ldexp(1.0, b.bits) - 1;
+  if (r.has_black_level && !(r.black_level >= 0 && r.black_level < full_scale))
+    bad("EXIF BlackLevel", r.black_level,
+        "outside the " + std::to_string(b.bits) + "-bit range (0 to " + value_text(full_scale - 1) +
+            ")");
+  if (r.exposure_s != 0 && !(r.exposure_s > 0 && r.exposure_s <= 60))
+    bad("EXIF ExposureTime", r.exposure_s, "not an exposure (above 0, at most 60 s)");
+  if (r.iso_speed != 0 && !(r.iso_speed >= 1 && r.iso_speed <= 1e6))
+    bad("EXIF ISOSpeed", r.iso_speed, "not a gain (ISO 1 to 1000000)");
+  if (r.calibration.size() == 3) {
+    if (!(r.calibration[0] > 0))
+      bad("XMP RadiometricCalibration a1", r.calibration[0],
+          "radiance would be zero or negative (a1 must be above 0)");
+    // R(y) = 1 / (1 + a2 y / exposure - a3 y) must stay positive on every row.
+    if (r.exposure_s > 0)
+      for (double y : {0.0, double(std::max<int64_t>(0, b.height - 1))})
+        if (!(1 + r.calibration[1] * y / r.exposure_s - r.calibration[2] * y > 0))
+          bad("XMP RadiometricCalibration a2", r.calibration[1],
+              "with a3 " + value_text(r.calibration[2]) +
+                  " the row correction turns negative at row " + value_text(y));
+  }
+  if (r.vignetting_centre_px.size() == 2 && !r.vignetting_polynomial.empty()) {
+    const double cx = r.vignetting_centre_px[0], cy = r.vignetting_centre_px[1];
+    if (std::abs(cx) > 4.0 * double(b.width) || std::abs(cy) > 4.0 * double(b.height))
+      bad("XMP VignettingCenter x", cx, "far outside the image");
+    double reach = 0;
+    for (double x : {0.0, double(b.width)})
+      for (double y : {0.0, double(b.height)}) reach = std::max(reach, std::hypot(x - cx, y - cy));
+    // 1 + k0 r + k1 r^2 + ... over every radius the image reaches.
+    for (double radius = 0; radius <= reach + 1; radius += 1) {
+      double poly = 0;
+      for (auto k = r.vignetting_polynomial.rbegin(); k != r.vignetting_polynomial.rend(); ++k)
+        poly = (poly + *k) * radius;
+      if (!(poly + 1 > 0) || !std::isfinite(poly))
+        throw core::Error(b.file,
+                          "XMP VignettingPolynomial turns the vignetting correction "
+                          "negative or infinite at " +
+                              value_text(radius) + " px from its centre: not a lens's vignetting");
+    }
+  }
+  if (r.irradiance_raw != 0 && !(r.irradiance_raw >= 1e-6 && r.irradiance_raw <= 100))
+    bad("XMP " + r.irradiance_tag, r.irradiance_raw,
+        "not a spectral irradiance (expected 1e-06 to 100 W/m2/nm)");
+  if (b.px_per_mm != 0 && !(b.px_per_mm > 1 && b.px_per_mm < 1e5))
+    bad("EXIF FocalPlaneXResolution", b.px_per_mm, "not a sensor's pixels per mm");
+  if (b.focal_length_mm != 0) {
+    const double px =
+        b.focal_length_units == "px" ? b.focal_length_mm : b.focal_length_mm * b.px_per_mm;
+    if (!(b.focal_length_mm > 0) ||
+        (px > 0 && !(px >= 0.05 * double(b.width) && px <= 100 * double(b.width))))
+      bad("XMP PerspectiveFocalLength", b.focal_length_mm,
+          "not a focal length for a " + std::to_string(b.width) + " px wide image (" +
+              b.focal_length_units + ")");
+  }
+  if (b.principal_point_mm.size() == 2 && b.px_per_mm > 0) {
+    const double x = b.principal_point_mm[0] * b.px_per_mm,
+                 y = b.principal_point_mm[1] * b.px_per_mm;
+    if (!(x > 0 && x < double(b.width) && y > 0 && y < double(b.height)))
+      throw core::Error(
+          b.file, "XMP PrincipalPoint is " + core::join_numbers(b.principal_point_mm) + " mm (" +
+                      value_text(x) + ", " + value_text(y) + " px): not inside the image");
+  } else if (!b.principal_point_mm.empty() && b.principal_point_mm.size() != 2) {
+    throw core::Error(b.file, "XMP PrincipalPoint has " +
+                                  std::to_string(b.principal_point_mm.size()) +
+                                  " values, expected 2 (x, y in mm)");
+  }
+  for (double angle : b.rig_relatives_deg)
+    if (!(std::abs(angle) <= 90))
+      bad("XMP RigRelatives", angle, "not a rig camera's angle (at most 90 degrees)");
+  if (b.has_position && !(std::abs(b.latitude_deg) <= 90 && std::abs(b.longitude_deg) <= 180))
+    throw core::Error(b.file, "EXIF GPS position " + value_text(b.latitude_deg) + ", " +
+                                  value_text(b.longitude_deg) + " is not on Earth");
+  for (double angle : b.dls_pose_rad)
+    if (!(std::abs(angle) <= 7)) bad("XMP DLS attitude", angle, "not an angle in radians");
 }
 
 }  // namespace
@@ -277,6 +486,7 @@ RigBandImage read_rig_band_image(const fs::path& file) {
       throw core::Error(file,
                         "XMP PerspectiveFocalLengthUnits is '" + *units + "', expected mm or px");
   }
+  if (!xmp_property(xmp, "PerspectiveFocalLengthUnits")) decide_focal_units(&image);
   image.principal_point_mm = numbers(xmp_list(xmp, "PrincipalPoint"), file, "PrincipalPoint");
   image.distortion = numbers(xmp_list(xmp, "PerspectiveDistortion"), file, "PerspectiveDistortion");
   image.rig_relatives_deg = numbers(xmp_list(xmp, "RigRelatives"), file, "RigRelatives");
@@ -285,6 +495,14 @@ RigBandImage read_rig_band_image(const fs::path& file) {
                                 std::to_string(image.rig_relatives_deg.size()) +
                                 " values, expected 3 angles");
   read_xmp_radiometry(xmp, file, &image.radiometry);
+  if (auto yaw = xmp_property(xmp, "Yaw")) {
+    const auto pitch = xmp_property(xmp, "Pitch"), roll = xmp_property(xmp, "Roll");
+    if (pitch && roll)
+      image.dls_pose_rad = {number(*yaw, file, "DLS Yaw"), number(*pitch, file, "DLS Pitch"),
+                            number(*roll, file, "DLS Roll")};
+  }
+  check_metadata(image);
+  correct_dls1(&image);
   return image;
 }
 
@@ -384,8 +602,10 @@ std::string xmp_of(const RigBandImage& b) {
   out += attribute("Camera:WavelengthFWHM", real(b.fwhm_nm));
   out += attribute("Camera:RigCameraIndex", std::to_string(b.rig_index));
   if (!b.capture_id.empty()) out += attribute("MicaSense:CaptureId", b.capture_id);
-  if (b.focal_length_mm > 0)
+  if (b.focal_length_mm > 0) {
     out += attribute("Camera:PerspectiveFocalLength", real(b.focal_length_mm));
+    out += attribute("Camera:PerspectiveFocalLengthUnits", b.focal_length_units);
+  }
   if (!b.principal_point_mm.empty())
     out += attribute("Camera:PrincipalPoint", core::join_numbers(b.principal_point_mm));
   if (!b.rig_relatives_deg.empty())

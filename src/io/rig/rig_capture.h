@@ -6,8 +6,9 @@
 // Which band each file holds, through which camera, in which capture, and
 // the radiometric metadata (EXIF exposure, gain, black level; XMP
 // calibration, vignetting, DLS irradiance) that io/rig/rig_radiometry.h turns
-// into radiance and reflectance. Placing the band cameras in a scene is not
-// here yet (issue 31).
+// into radiance and reflectance. Every value the radiometry or the geometry
+// uses is range-checked as the file is read (one error naming the file, the
+// tag and the value). process/rig.h places the band cameras in a scene.
 #pragma once
 #include "core/tensor.h"
 
@@ -31,11 +32,17 @@ struct RigRadiometry {
   std::vector<double> calibration;           // XMP RadiometricCalibration a1, a2, a3
   std::vector<double> vignetting_centre_px;  // XMP VignettingCenter x, y
   std::vector<double> vignetting_polynomial;  // XMP VignettingPolynomial k0, k1, ...
-  // Downwelling light sensor: W/m^2/nm after IrradianceScaleToSIUnits, from
-  // HorizontalIrradiance where the sensor gives it, else SpectralIrradiance
-  // (else Irradiance); irradiance_tag names the one used.
+  // Downwelling light sensor, W/m^2/nm on level ground, as the camera maker
+  // defines it: a DLS 2's HorizontalIrradiance; a DLS 1's SpectralIrradiance
+  // (else Irradiance) corrected for the sun's angle to the tilted sensor
+  // (io/rig/sun.h) where the file gives the time, the position and the
+  // sensor's attitude, else as measured. irradiance_tag names the tag read,
+  // irradiance_raw its value (after IrradianceScaleToSIUnits),
+  // irradiance_correction what was applied.
   double irradiance = 0;
+  double irradiance_raw = 0;
   std::string irradiance_tag;
+  std::string irradiance_correction;
 
   double gain() const { return iso_speed / 100; }
 };
@@ -49,9 +56,13 @@ struct RigBandImage {
   double centre_nm = 0;        // Camera:CentralWavelength
   double fwhm_nm = 0;          // Camera:WavelengthFWHM
   double focal_length_mm = 0;  // Camera:PerspectiveFocalLength (0: absent)
-  // Camera:PerspectiveFocalLengthUnits: "mm" (the default) or "px", in which
-  // case focal_length_mm holds pixels.
+  // Its unit, "mm" or "px" (focal_length_mm then holds pixels): the
+  // PerspectiveFocalLengthUnits tag; without it (older firmware writes pixels
+  // and no tag) the reading that agrees with EXIF FocalLength, else pixels
+  // unless the value is too short to be pixels. focal_units_from says which.
   std::string focal_length_units = "mm";
+  std::string focal_units_from = "tag";
+  double exif_focal_length_mm = 0;         // EXIF FocalLength (0: absent)
   double px_per_mm = 0;                    // EXIF FocalPlaneXResolution (pixels per mm; 0: absent)
   std::vector<double> principal_point_mm;  // Camera:PrincipalPoint "x,y" (empty: absent)
   std::vector<double> distortion;          // Camera:PerspectiveDistortion k1 k2 k3 p1 p2
@@ -61,6 +72,14 @@ struct RigBandImage {
   int64_t width = 0, height = 0;
   int bits = 0;  // bits per sample
   RigRadiometry radiometry;
+  // Where and when: EXIF GPS (degrees, metres) and DateTimeOriginal +
+  // SubSecTime (UTC, as MicaSense cameras write it), seconds since 1970.
+  bool has_position = false;
+  double latitude_deg = 0, longitude_deg = 0, altitude_m = 0;
+  bool has_time = false;
+  double utc_seconds = 0;
+  // The DLS's attitude (XMP DLS:Yaw, Pitch, Roll, radians); empty: absent.
+  std::vector<double> dls_pose_rad;
 };
 
 // A property of an XMP packet, in either form XMP allows: an attribute
@@ -73,7 +92,11 @@ std::vector<std::string> xmp_list(const std::string& xmp, const std::string& nam
 
 // Reads one band image's metadata (not its pixels). core::Error naming the
 // file when it is not a single-band TIFF, has no XMP, or its XMP lacks the
-// band (a rig this reader does not know is named as such).
+// band (a rig this reader does not know is named as such), or when a value
+// the radiometry or geometry uses is out of range (a wavelength, bandwidth,
+// calibration coefficient, vignetting polynomial that turns negative, black
+// level, exposure, gain, irradiance, focal length, principal point, rig
+// angle, position): the error names the tag and the value.
 RigBandImage read_rig_band_image(const std::filesystem::path& file);
 
 // The band images of one trigger, by rig index.

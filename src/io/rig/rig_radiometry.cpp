@@ -84,54 +84,87 @@ torch::Tensor read_band_counts(const RigBandImage& image) {
   return cube_to_float(cube, 1.0).squeeze(2);
 }
 
+torch::Tensor band_signal(const RigBandImage& image, const torch::Tensor& counts) {
+  return (counts.to(torch::kFloat) - float(image.radiometry.black_level)).clamp_min(0.0f);
+}
+
 std::vector<ReflectanceCalibration> panel_calibration(const RigCapture& panel,
+                                                      const std::vector<RigBandImage>& cameras,
                                                       const std::vector<double>& albedo,
-                                                      const PanelWindow& window) {
+                                                      const PanelRegions& regions) {
   core::require(!panel.bands.empty(), "the panel capture holds no band images");
-  if (albedo.size() != panel.bands.size())
+  if (albedo.size() != cameras.size())
     throw core::Error(panel.bands.front().file,
-                      "the panel capture has " + std::to_string(panel.bands.size()) +
-                          " band cameras but " + std::to_string(albedo.size()) +
+                      "the rig has " + std::to_string(cameras.size()) + " band cameras but " +
+                          std::to_string(albedo.size()) +
                           " panel albedo values were given (one per camera, in rig order)");
   std::vector<ReflectanceCalibration> out;
-  for (size_t i = 0; i < panel.bands.size(); ++i) {
-    const RigBandImage& image = panel.bands[i];
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    const RigBandImage& camera = cameras[i];
+    const RigBandImage* found = nullptr;
+    for (const RigBandImage& b : panel.bands)
+      if (b.band_name == camera.band_name && std::abs(b.centre_nm - camera.centre_nm) < 0.5)
+        found = &b;
+    if (!found) {
+      std::string held;
+      for (const RigBandImage& b : panel.bands)
+        held += (held.empty() ? "" : ", ") + b.band_name + " " + number(b.centre_nm) + " nm";
+      throw core::Error(camera.file, "band " + camera.band_name + " (" + number(camera.centre_nm) +
+                                         " nm) has no image in the panel capture, which holds " +
+                                         held);
+    }
+    const RigBandImage& image = *found;
     if (!(albedo[i] > 0 && albedo[i] <= 1))
       throw core::Error(image.file, "panel albedo " + number(albedo[i]) + " for band " +
                                         image.band_name + " is not in (0, 1]");
-    const int64_t side = std::max<int64_t>(
-        1, int64_t(std::lround(window.size * double(std::min(image.width, image.height)))));
-    const int64_t x0 =
-        std::clamp<int64_t>(int64_t(std::lround(window.centre_x * double(image.width))) - side / 2,
-                            0, image.width - side);
-    const int64_t y0 =
-        std::clamp<int64_t>(int64_t(std::lround(window.centre_y * double(image.height))) - side / 2,
-                            0, image.height - side);
     const torch::Tensor counts = read_band_counts(image);
-    const torch::Tensor in_window = counts.slice(0, y0, y0 + side).slice(1, x0, x0 + side);
+    ReflectanceCalibration c;
+    auto given = regions.find(camera.rig_index);
+    if (given == regions.end()) given = regions.find(-1);
+    if (given != regions.end()) {
+      c.region = panel_region_from_box(image.height, image.width, given->second,
+                                       "--panel-region for " + image.file.string());
+    } else {
+      const torch::Tensor signal = band_signal(image, counts);
+      if (!(signal.max().item<double>() > 0))
+        throw core::Error(image.file, "the panel capture reads no signal above the black level");
+      std::optional<PanelRegion> region = find_panel(signal);
+      if (!region)
+        throw PanelNotFound(image,
+                            "no calibration panel found (an even, bright square; the QR label "
+                            "beside it is not the panel): name where it lies with --panel-region "
+                            "x,y,w,h");
+      c.region = std::move(*region);
+    }
+    const torch::Tensor in_region = counts.masked_select(c.region.mask).to(torch::kDouble);
     const double full_scale = std::ldexp(1.0, image.bits) - 1;
-    if (in_window.max().item<double>() >= 0.98 * full_scale)
-      throw core::Error(image.file,
-                        "the panel is saturated in its window (counts at the top of the " +
-                            std::to_string(image.bits) +
-                            "-bit range): take the panel capture with a shorter exposure");
+    c.raw_mean = in_region.mean().item<double>();
+    c.raw_spread = in_region.std().item<double>();
+    c.saturated = (in_region >= full_scale - std::ldexp(1.0, image.bits - 8)).sum().item<int64_t>();
+    if (double(c.saturated) > 0.005 * double(c.region.pixels))
+      throw core::Error(image.file, "the panel is saturated: " + std::to_string(c.saturated) +
+                                        " of its " + std::to_string(c.region.pixels) +
+                                        " pixels are at the top of the " +
+                                        std::to_string(image.bits) +
+                                        "-bit range: take the panel capture with a shorter "
+                                        "exposure");
     const double radiance = counts_to_radiance(image, counts)
-                                .slice(0, y0, y0 + side)
-                                .slice(1, x0, x0 + side)
+                                .masked_select(c.region.mask)
+                                .to(torch::kDouble)
                                 .mean()
                                 .item<double>();
     if (!(radiance > 0))
-      throw core::Error(image.file, "the panel reads no signal in its window (" +
-                                        std::to_string(side) + " px square at " +
-                                        std::to_string(x0) + "," + std::to_string(y0) + ")");
-    ReflectanceCalibration c;
-    c.rig_index = image.rig_index;
-    c.band = image.band_name;
+      throw core::Error(image.file, "the panel region reads no signal above the black level");
+    c.rig_index = camera.rig_index;
+    c.band = camera.band_name;
+    c.centre_nm = camera.centre_nm;
     c.factor = albedo[i] / radiance;
     c.source = "panel";
     c.panel_radiance = radiance;
     c.albedo = albedo[i];
-    out.push_back(c);
+    c.panel_file = image.file;
+    c.irradiance = radiance * kPi / albedo[i];
+    out.push_back(std::move(c));
   }
   return out;
 }
@@ -139,10 +172,10 @@ std::vector<ReflectanceCalibration> panel_calibration(const RigCapture& panel,
 ReflectanceCalibration reflectance_calibration(const RigBandImage& image,
                                                const std::vector<ReflectanceCalibration>& panel) {
   for (const ReflectanceCalibration& c : panel)
-    if (c.rig_index == image.rig_index) return c;
+    if (c.band == image.band_name && std::abs(c.centre_nm - image.centre_nm) < 0.5) return c;
   if (!panel.empty())
-    throw core::Error(image.file, "band camera " + std::to_string(image.rig_index) + " (" +
-                                      image.band_name + ") is not in the panel capture");
+    throw core::Error(image.file, "band " + image.band_name + " (" + number(image.centre_nm) +
+                                      " nm) is not in the panel capture");
   if (image.radiometry.irradiance <= 0)
     throw core::Error(image.file,
                       "has no downwelling light sensor irradiance (XMP SpectralIrradiance) and "
@@ -150,8 +183,10 @@ ReflectanceCalibration reflectance_calibration(const RigBandImage& image,
   ReflectanceCalibration c;
   c.rig_index = image.rig_index;
   c.band = image.band_name;
+  c.centre_nm = image.centre_nm;
   c.factor = kPi / image.radiometry.irradiance;
   c.source = "DLS";
+  c.irradiance = image.radiometry.irradiance;
   return c;
 }
 
