@@ -263,8 +263,24 @@ void print_text(const io::Scene& scene, const io::SceneReport& r, const BorderCh
 int describe_rig(const std::string& dir, bool as_json) {
   const std::vector<io::RigCapture> captures = io::read_rig_captures(dir);
   const std::vector<io::RigBandImage>& bands = captures.front().bands;
+  // The camera in pixels: focal length and principal point (empty: the file
+  // does not say).
+  auto pixels_of = [](const io::RigBandImage& b) -> std::optional<core::Intrinsics> {
+    try {
+      return io::rig_intrinsics(b);
+    } catch (const core::Error&) {
+      return std::nullopt;
+    }
+  };
   nlohmann::json cameras = nlohmann::json::array();
-  for (const io::RigBandImage& b : bands)
+  for (const io::RigBandImage& b : bands) {
+    const std::optional<core::Intrinsics> k = pixels_of(b);
+    nlohmann::json in_pixels = nullptr;
+    if (k)
+      in_pixels = {{"focal_length_px", k->fx},
+                   {"principal_point_px", {k->cx, k->cy}},
+                   {"focal_length_units_in_file", b.focal_length_units},
+                   {"units_from", b.focal_units_from}};
     cameras.push_back({{"rig_index", b.rig_index},
                        {"band", b.band_name},
                        {"centre_nm", b.centre_nm},
@@ -272,7 +288,8 @@ int describe_rig(const std::string& dir, bool as_json) {
                        {"width", b.width},
                        {"height", b.height},
                        {"bits", b.bits},
-                       {"focal_length_mm", b.focal_length_mm},
+                       {"focal_length_in_file", b.focal_length_mm},
+                       {"intrinsics", in_pixels},
                        {"rig_relatives_deg", b.rig_relatives_deg},
                        {"angle_to_reference_deg", io::rig_relative_angle_deg(b.rig_relatives_deg)},
                        {"radiometry",
@@ -283,7 +300,10 @@ int describe_rig(const std::string& dir, bool as_json) {
                          {"vignetting_centre_px", b.radiometry.vignetting_centre_px},
                          {"vignetting_polynomial", b.radiometry.vignetting_polynomial},
                          {"irradiance", b.radiometry.irradiance},
-                         {"irradiance_tag", b.radiometry.irradiance_tag}}}});
+                         {"irradiance_raw", b.radiometry.irradiance_raw},
+                         {"irradiance_tag", b.radiometry.irradiance_tag},
+                         {"irradiance_correction", b.radiometry.irradiance_correction}}}});
+  }
   // Radiance needs exposure, gain and calibration in every file;
   // reflectance a panel capture or a DLS reading in every file.
   std::string no_radiance, no_dls;
@@ -319,13 +339,23 @@ int describe_rig(const std::string& dir, bool as_json) {
             << (captures.size() > 1 ? " ... " + captures.back().id : std::string()) << ")\n"
             << "rig         " << bands.size() << " band cameras\n";
   for (const io::RigBandImage& b : bands) {
-    char line[256];
+    char line[320];
+    const std::optional<core::Intrinsics> k = pixels_of(b);
+    char turn[80] = "no rig rotation in the file (taken as parallel to the others)";
+    if (!b.rig_relatives_deg.empty())
+      std::snprintf(turn, sizeof turn, "%.3f deg from the reference",
+                    io::rig_relative_angle_deg(b.rig_relatives_deg));
+    char lens[96] = "focal length unknown";
+    if (!k && b.focal_length_mm > 0)
+      std::snprintf(lens, sizeof lens, "focal %.2f %s", b.focal_length_mm,
+                    b.focal_length_units.c_str());
+    if (k)
+      std::snprintf(lens, sizeof lens, "focal %.1f px, principal point (%.1f, %.1f) px", k->fx,
+                    k->cx, k->cy);
     std::snprintf(line, sizeof line,
-                  "  camera %d  %-10s %6.1f nm (FWHM %.1f), %lld x %lld px, %d bits, focal %.2f "
-                  "mm, %.3f deg from the reference\n",
+                  "  camera %d  %-10s %6.1f nm (FWHM %.1f), %lld x %lld px, %d bits, %s, %s\n",
                   b.rig_index, b.band_name.c_str(), b.centre_nm, b.fwhm_nm, (long long)b.width,
-                  (long long)b.height, b.bits, b.focal_length_mm,
-                  io::rig_relative_angle_deg(b.rig_relatives_deg));
+                  (long long)b.height, b.bits, lens, turn);
     std::cout << line;
     const io::RigRadiometry& r = b.radiometry;
     std::snprintf(line, sizeof line,
@@ -336,11 +366,22 @@ int describe_rig(const std::string& dir, bool as_json) {
                   r.vignetting_polynomial.empty() ? "none" : "yes",
                   r.irradiance > 0 ? (std::to_string(r.irradiance) + " W/m2/nm").c_str() : "none");
     std::cout << line;
+    if (r.irradiance > 0 && r.irradiance != r.irradiance_raw) {
+      std::snprintf(line, sizeof line, "            DLS as read %.6f W/m2/nm (%s); corrected: %s\n",
+                    r.irradiance_raw, r.irradiance_tag.c_str(), r.irradiance_correction.c_str());
+      std::cout << line;
+    }
   }
   std::cout << "radiance    " << radiance << "\n"
-            << "reflectance " << reflectance << "\n"
-            << "  next: ddhgs process " << dir
-            << " --rig --out SCENE (reflectance, poses) gives a scene to train\n";
+            << "reflectance " << reflectance << "\n";
+  if (captures.size() < 3)
+    std::cout << "  next: " << captures.size()
+              << " capture(s) cannot be posed; a panel capture goes to ddhgs process FLIGHT --rig "
+                 "--panel "
+              << dir << " --panel-albedo a,b,... with a flight of 3 or more captures\n";
+  else
+    std::cout << "  next: ddhgs process " << dir
+              << " --rig --out SCENE (reflectance, poses) gives a scene to train\n";
   return 0;
 }
 

@@ -1,6 +1,9 @@
 // `ddhgs process CUBES_DIR --out SCENE`: raw hyperspectral captures -> a
 // trainable scene (pseudo-RGB, COLMAP poses and sparse points with spectra).
+#include <array>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "app/number_list.h"
 #include "app/registry.h"
@@ -21,8 +24,42 @@ struct ProcessArgs {
   // --rig: multispectral rig captures
   bool rig = false;
   std::string panel, panel_albedo;
+  std::vector<std::string> panel_regions;
   int reference_camera = 0;
+  CLI::Option* reference_option = nullptr;
 };
+
+// "x,y,w,h" (every camera) or "CAMERA:x,y,w,h" -> the regions by rig index.
+io::PanelRegions parse_panel_regions(const std::vector<std::string>& values) {
+  io::PanelRegions regions;
+  for (const std::string& value : values) {
+    const size_t colon = value.find(':');
+    int camera = -1;
+    std::string box = value;
+    if (colon != std::string::npos) {
+      const std::vector<double> index =
+          parse_number_list(value.substr(0, colon), "--panel-region camera");
+      core::require(index.size() == 1 && index[0] >= 0 && index[0] == double(int(index[0])),
+                    "--panel-region '" + value +
+                        "': expected CAMERA:x,y,w,h with a rig camera "
+                        "number before the colon");
+      camera = int(index[0]);
+      box = value.substr(colon + 1);
+    }
+    const std::vector<double> v = parse_number_list(box, "--panel-region");
+    core::require(v.size() == 4, "--panel-region '" + value +
+                                     "': expected x,y,w,h (pixels), optionally after CAMERA:");
+    std::array<int64_t, 4> b{};
+    for (size_t i = 0; i < 4; ++i) {
+      core::require(v[i] == double(int64_t(v[i])),
+                    "--panel-region '" + value + "': x, y, w, h are whole pixels");
+      b[i] = int64_t(v[i]);
+    }
+    core::require(regions.emplace(camera, b).second,
+                  "--panel-region: camera " + std::to_string(camera) + " given twice");
+  }
+  return regions;
+}
 
 Action setup(CLI::App& parent) {
   auto args = std::make_shared<ProcessArgs>();
@@ -41,10 +78,15 @@ Action setup(CLI::App& parent) {
                   "panel; without it, from each capture's DLS irradiance)");
   cmd->add_option("--panel-albedo", args->panel_albedo,
                   "With --panel: the panel's albedo per band camera, in rig order (a,b,c,...)");
-  cmd->add_option(
+  cmd->add_option("--panel-region", args->panel_regions,
+                  "With --panel: where the panel lies, x,y,w,h in pixels, for every band "
+                  "image of the panel capture or CAMERA:x,y,w,h for one camera (rig number); "
+                  "repeatable (default: the panel is found in each band image)");
+  args->reference_option = cmd->add_option(
       "--reference-camera", args->reference_camera,
-      "With --rig: the band camera (rig index) whose images COLMAP poses; the others "
-      "follow by their rig rotations (default: the camera with the brightest reflectance)");
+      "With --rig: the band camera (the rig's own number, RigCameraIndex) whose images COLMAP "
+      "poses; the others follow by their rig rotations (default: the camera with the "
+      "brightest reflectance)");
   cmd->add_option("--out", args->out, "Output scene folder")->required();
   cmd->add_option("--matcher", args->colmap.matcher,
                   "exhaustive (any capture) or sequential (views in capture order)")
@@ -76,7 +118,8 @@ Action setup(CLI::App& parent) {
       for (const auto& [flag, given] :
            {std::pair<const char*, bool>{"--panel", !args->panel.empty()},
             {"--panel-albedo", !args->panel_albedo.empty()},
-            {"--reference-camera", args->reference_camera != 0}})
+            {"--panel-region", !args->panel_regions.empty()},
+            {"--reference-camera", args->reference_option->count() > 0}})
         core::require(!given, std::string(flag) + ": only used with --rig");
     if (args->rig) {
       process::RigProcessOptions options;
@@ -85,7 +128,10 @@ Action setup(CLI::App& parent) {
       options.panel_dir = args->panel;
       if (!args->panel_albedo.empty())
         options.panel_albedo = parse_number_list(args->panel_albedo, "--panel-albedo");
-      options.reference_camera = args->reference_camera;
+      if (args->reference_option->count() > 0) options.reference_camera = args->reference_camera;
+      core::require(args->panel_regions.empty() || !args->panel.empty(),
+                    "--panel-region: only used with --panel");
+      options.panel_regions = parse_panel_regions(args->panel_regions);
       options.colmap = args->colmap;
       options.colmap.threads = core::thread_count();
       options.poses = args->poses;

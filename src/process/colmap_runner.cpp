@@ -42,8 +42,11 @@ std::string shell_quote(const std::string& s) {
   return out + "'";
 }
 
+// A PATH entry that cannot be read (no permission, a dangling link) is not
+// an error: it holds no COLMAP we can run.
 bool is_executable(const fs::path& path) {
-  return fs::is_regular_file(path) && access(path.c_str(), X_OK) == 0;
+  std::error_code ec;
+  return fs::is_regular_file(path, ec) && access(path.c_str(), X_OK) == 0;
 }
 
 // "... [3/24] ..." after marker: 3 (done) and 24 (total); false when absent.
@@ -109,7 +112,9 @@ struct StageRun {
 // Returns the exit status and the last line that mentions an error.
 int run_stage(const std::string& binary, const StageRun& run, const StageOptions& options,
               std::ofstream& log, std::string* last_error) {
-  std::string command = shell_quote(binary) + " " + run.command;
+  // glog would write COLMAP's own log files into the system's temporary
+  // folder; to stderr they come into this log instead.
+  std::string command = "GLOG_logtostderr=1 " + shell_quote(binary) + " " + run.command;
   for (const auto& [key, value] : options) command += " --" + key + " " + shell_quote(value);
   log << "$ " << command << "\n" << std::flush;
   std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen((command + " 2>&1").c_str(), "r"), pclose);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <map>
 
 #include "core/error.h"
@@ -45,6 +46,28 @@ void write_reference_pngs(const std::vector<std::pair<std::string, torch::Tensor
   }
 }
 
+// A band image as an 8-bit picture (0 to its 99.5th percentile), the panel
+// region's outline drawn in red where there is one.
+void write_panel_picture(const fs::path& path, const torch::Tensor& counts,
+                         const io::PanelRegion* region) {
+  const torch::Tensor flat = counts.flatten().slice(0, 0, -1, 3).to(torch::kFloat);
+  const int64_t rank = std::max<int64_t>(1, int64_t(0.995 * double(flat.numel())));
+  const double top = std::max(1e-6, std::get<0>(flat.kthvalue(rank)).item<double>());
+  torch::Tensor grey =
+      (counts.to(torch::kFloat) / float(top)).clamp(0, 1).mul(255).round().to(torch::kUInt8);
+  torch::Tensor rgb = grey.unsqueeze(2).expand({-1, -1, 3}).contiguous();
+  if (region && region->mask.defined()) {
+    // The outline: region pixels within 2 px of a pixel outside it.
+    const torch::Tensor inside = region->mask.to(torch::kFloat).unsqueeze(0).unsqueeze(0);
+    const torch::Tensor core = -torch::max_pool2d(-inside, {5, 5}, {1, 1}, {2, 2});
+    const torch::Tensor edge = (inside - core).squeeze(0).squeeze(0) > 0.5f;
+    rgb.select(2, 0).masked_fill_(edge, 255);
+    rgb.select(2, 1).masked_fill_(edge, 0);
+    rgb.select(2, 2).masked_fill_(edge, 0);
+  }
+  io::write_png(path, rgb);
+}
+
 }  // namespace
 
 ProcessResult process_rig(const RigProcessOptions& options) {
@@ -68,27 +91,69 @@ ProcessResult process_rig(const RigProcessOptions& options) {
 
   const std::vector<io::RigCapture> captures = io::read_rig_captures(options.captures_dir);
   const std::vector<io::RigBandImage>& cameras = captures.front().bands;
-  std::vector<io::ReflectanceCalibration> panel;
-  if (!options.panel_dir.empty()) {
-    const std::vector<io::RigCapture> panels = io::read_rig_captures(options.panel_dir);
-    if (panels.size() != 1)
-      throw core::Error(options.panel_dir, "holds " + std::to_string(panels.size()) +
-                                               " captures; give the folder of one panel capture");
-    panel = io::panel_calibration(panels.front(), options.panel_albedo);
-  }
+  // Posing and training need three captures: refused before any work.
+  if (captures.size() < 3)
+    throw core::Error(options.captures_dir,
+                      "holds " + std::to_string(captures.size()) + " capture" +
+                          (captures.size() == 1 ? "" : "s") +
+                          " of the rig; at least 3 overlapping captures are needed to pose and "
+                          "train (a panel capture goes to --panel)");
   // The camera COLMAP poses: the one asked for, else (chosen once the
   // reflectance is known) the brightest, whose images have the most texture
   // to match: NIR over vegetation, where the blue camera sees little.
-  int reference = options.reference_camera;
+  std::string numbers;
+  for (const io::RigBandImage& b : cameras)
+    numbers += (numbers.empty() ? "" : ", ") + std::to_string(b.rig_index);
+  int reference = options.reference_camera.value_or(-1);
   auto reference_of = [&](const io::RigCapture& c) -> const io::RigBandImage* {
     for (const io::RigBandImage& b : c.bands)
       if (b.rig_index == reference) return &b;
     return nullptr;
   };
-  if (reference > 0 && !reference_of(captures.front()))
-    throw core::Error("--reference-camera", std::to_string(reference) +
-                                                " is not a band camera of the rig (cameras 1 to " +
-                                                std::to_string(cameras.back().rig_index) + ")");
+  if (options.reference_camera && !reference_of(captures.front()))
+    throw core::Error("--reference-camera",
+                      std::to_string(reference) + " is not a band camera of the rig in " +
+                          options.captures_dir.string() + " (its cameras: " + numbers + ")");
+  for (const auto& [index, box] : options.panel_regions) {
+    bool known = index == -1;
+    for (const io::RigBandImage& b : cameras) known = known || b.rig_index == index;
+    if (!known)
+      throw core::Error("--panel-region",
+                        std::to_string(index) +
+                            " is not a band camera of the rig (its cameras: " + numbers + ")");
+  }
+  std::vector<io::ReflectanceCalibration> panel;
+  std::vector<io::RigBandImage> panel_images;
+  const fs::path panel_picture = (out.parent_path().empty() ? fs::path(".") : out.parent_path()) /
+                                 (out.filename().string() + ".panel.png");
+  if (!options.panel_dir.empty()) {
+    const std::vector<io::RigCapture> panels = io::read_rig_captures(options.panel_dir);
+    if (panels.size() != 1)
+      throw core::Error(options.panel_dir, "holds " + std::to_string(panels.size()) +
+                                               " captures; give the folder of one panel capture");
+    panel_images = panels.front().bands;
+    std::error_code ec;
+    fs::remove(panel_picture, ec);
+    try {
+      panel = io::panel_calibration(panels.front(), cameras, options.panel_albedo,
+                                    options.panel_regions);
+    } catch (const io::PanelNotFound& e) {
+      // The picture a person looks at to say where the panel lies.
+      write_panel_picture(panel_picture, io::read_band_counts(e.image), nullptr);
+      throw core::Error(std::string(e.what()) + " (the band image: " + panel_picture.string() +
+                        ")");
+    }
+    for (const io::ReflectanceCalibration& c : panel) {
+      char line[240];
+      std::snprintf(line, sizeof line,
+                    "process: panel in %s: %s region, %lld px, raw mean %.1f (spread %.1f), "
+                    "radiance %.6g, irradiance %.6g W/m2/nm",
+                    c.panel_file.filename().string().c_str(), c.region.found ? "found" : "given",
+                    (long long)c.region.pixels, c.raw_mean, c.raw_spread, c.panel_radiance,
+                    c.irradiance);
+      core::log_info(line);
+    }
+  }
   // The scene's band grid: the cameras' centre wavelengths, ascending.
   std::vector<std::pair<double, int>> by_wavelength;
   for (const io::RigBandImage& b : cameras) by_wavelength.emplace_back(b.centre_nm, b.rig_index);
@@ -114,6 +179,14 @@ ProcessResult process_rig(const RigProcessOptions& options) {
   result.views = int(captures.size() * cameras.size());
   io::write_folder_atomically(request, [&](const fs::path& tmp) {
     fs::create_directories(tmp / "bands");
+    if (!panel.empty()) {
+      fs::create_directories(tmp / "panel");
+      for (const io::ReflectanceCalibration& c : panel)
+        for (const io::RigBandImage& b : panel_images)
+          if (b.file == c.panel_file)
+            write_panel_picture(tmp / "panel" / (b.file.stem().string() + ".png"),
+                                io::read_band_counts(b), &c.region);
+    }
     std::map<int, io::ReflectanceCalibration> used;  // by camera (the last capture's for DLS)
     std::map<int, double> brightness;                // mean reflectance by camera
     {
@@ -131,7 +204,7 @@ ProcessResult process_rig(const RigProcessOptions& options) {
         }
       bar.finish();
     }
-    if (reference == 0) {
+    if (!options.reference_camera) {
       reference = cameras.front().rig_index;
       for (const auto& [index, sum] : brightness)
         if (sum > brightness[reference]) reference = index;
@@ -232,8 +305,23 @@ ProcessResult process_rig(const RigProcessOptions& options) {
                               {"rig_relatives_deg", b.rig_relatives_deg},
                               {"reflectance_from", c.source}};
       if (c.source == "panel") {
+        nlohmann::json corners = nlohmann::json::array();
+        for (const auto& corner : c.region.corners) corners.push_back({corner[0], corner[1]});
         entry["panel_albedo"] = c.albedo;
         entry["panel_radiance"] = c.panel_radiance;
+        entry["panel"] = {{"file", fs::absolute(c.panel_file).string()},
+                          {"region", c.region.found ? "found" : "given (--panel-region)"},
+                          {"corners_xy", corners},
+                          {"pixels", c.region.pixels},
+                          {"panel_side_px", c.region.panel_side_px},
+                          {"raw_mean", c.raw_mean},
+                          {"raw_spread", c.raw_spread},
+                          {"saturated_pixels", c.saturated},
+                          {"irradiance", c.irradiance},
+                          {"picture", "panel/" + c.panel_file.stem().string() + ".png"}};
+      } else {
+        entry["dls_irradiance_tag"] = b.radiometry.irradiance_tag;
+        entry["dls_correction"] = b.radiometry.irradiance_correction;
       }
       calibration.push_back(entry);
     }

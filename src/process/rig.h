@@ -13,12 +13,18 @@
 //    cameras' few-centimetre offsets are not modelled (no translation).
 //  - transforms.json names each frame's band ("bands"), with a split by
 //    capture (the Hyper-NeRF rule over captures: all bands of a capture are
-//    on the same side); process.json says which calibration each camera used.
+//    on the same side); process.json says which calibration each camera used
+//    and, with a panel, where the panel was found in each band and what its
+//    region holds; panel/ shows each panel band image with the region drawn.
+//  - Everything that can be checked before the work is: the metadata (as
+//    the files are read), the reference camera, the number of captures.
 #pragma once
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "io/rig/rig_radiometry.h"
 #include "process/colmap_runner.h"
 #include "process/process.h"
 
@@ -28,9 +34,13 @@ struct RigProcessOptions {
   std::filesystem::path captures_dir, out;
   std::filesystem::path panel_dir;   // empty: reflectance from the DLS
   std::vector<double> panel_albedo;  // per band camera, in rig order
-  // Rig index whose images COLMAP poses; 0: the camera with the brightest
-  // reflectance (the most texture to match).
-  int reference_camera = 0;
+  // Where the panel lies, where the finder should not look for it
+  // (io/rig/rig_radiometry.h: by rig index, -1 for every camera).
+  io::PanelRegions panel_regions;
+  // The rig's own number (RigCameraIndex) of the camera whose images COLMAP
+  // poses; none: the camera with the brightest reflectance (the most
+  // texture to match).
+  std::optional<int> reference_camera;
   ColmapOptions colmap;
   std::filesystem::path poses;  // given poses instead of COLMAP
   bool force = false;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -95,13 +96,44 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         config.nadir ? nadir_strip(scene, options, config.overlap) : turntable_rig(scene, options);
     const core::Intrinsics& k = references.front().intrinsics;
 
-    // The panel: a uniform grey card filling the frame, its radiance
-    // albedo x irradiance / pi, shot at a shorter exposure.
+    // The panel capture as one is taken in the field: a grey panel (radiance
+    // albedo x irradiance / pi) lying off-centre on textured tarmac, a
+    // printed QR label (white and black modules) beside it, shot at a
+    // shorter exposure; each band camera sees it a little shifted, as its
+    // own rotation turns it.
     for (const RigBandCamera& band : rig) {
       io::RigBandImage b = band_metadata(band, k, "panel", 0.0003);
       b.file = tmp / "panel" / band_file("PANL_0000", band.index);
-      const torch::Tensor radiance = torch::full(
-          {b.height, b.width}, float(band.panel_albedo * band.irradiance / kPi), torch::kFloat);
+      const int64_t h = b.height, w = b.width, side = std::min(h, w) * 3 / 10;
+      const double e = band.irradiance / kPi;
+      std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), uint32_t(band.index),
+                        0x9a4e1u};
+      std::mt19937_64 rng(seq);
+      auto uniform = [&rng](std::vector<int64_t> shape) {
+        torch::Tensor t = torch::empty(shape, torch::kFloat);
+        std::uniform_real_distribution<float> u(0.0f, 1.0f);
+        float* v = t.data_ptr<float>();
+        for (int64_t i = 0; i < t.numel(); ++i) v[i] = u(rng);
+        return t;
+      };
+      const torch::Tensor coarse = uniform({1, 1, h / 16 + 2, w / 16 + 2});
+      const torch::Tensor texture =
+          torch::upsample_bilinear2d(coarse, {h, w}, false).squeeze(0).squeeze(0);
+      torch::Tensor radiance = (0.06 + 0.05 * texture + 0.01 * uniform({h, w})) * float(e);
+      const int64_t shift = int64_t(band.index) * side / 40;
+      const int64_t px = w * 11 / 20 + shift, py = (h - side) / 2 + shift / 2;
+      radiance.slice(0, py, py + side).slice(1, px, px + side).fill_(float(band.panel_albedo * e));
+      // The label: white card with a grid of black and white modules.
+      const int64_t lx = px - side * 4 / 5, label = side * 2 / 3, modules = 21;
+      const torch::Tensor bits = (uniform({1, 1, modules, modules}) > 0.5f).to(torch::kFloat);
+      const int64_t code = label * 4 / 5;
+      const torch::Tensor pattern =
+          torch::upsample_nearest2d(bits, {code, code}).squeeze(0).squeeze(0);
+      torch::Tensor card = radiance.slice(0, py, py + label).slice(1, lx, lx + label);
+      card.fill_(float(0.85 * e));
+      card.slice(0, label / 10, label / 10 + code)
+          .slice(1, label / 10, label / 10 + code)
+          .copy_((0.05 + 0.80 * pattern) * float(e));
       io::write_rig_band_image(b, io::radiance_to_counts(b, radiance));
     }
 

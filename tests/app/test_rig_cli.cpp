@@ -217,6 +217,89 @@ TEST(RigCli, CapturesBecomeAReflectanceSceneThatTrainsLikeTheTruth) {
   EXPECT_FALSE(fs::exists(root / "bad"));
 }
 
+// The panel lies off-centre beside its QR label, as in a real panel capture:
+// found in every band, shown in SCENE/panel/, described in process.json. Bad
+// rig input stops before any work with one line and nothing left behind.
+TEST(RigCli, PanelFoundWhereItLiesAndBadRigInputStopsFirst) {
+  const fs::path root = test::temp_dir("rig_cli_panel");
+  const fs::path rig = root / "rig";
+  std::string out;
+  ASSERT_EQ(
+      ddhgs("synth --preset rig --width 160 --height 120 --views 4 --out " + rig.string(), &out), 0)
+      << out;
+  const std::string albedo = albedo_of(rig);
+  const std::string poses =
+      " --skip-colmap --poses " + (rig / "truth" / "transforms.json").string();
+  const std::string process = "process " + (rig / "captures").string() + " --rig ";
+  ASSERT_EQ(ddhgs(process + "--panel " + (rig / "panel").string() + " --panel-albedo " + albedo +
+                      poses + " --out " + (root / "scene").string(),
+                  &out),
+            0)
+      << out;
+  const json summary = read_json(root / "scene" / "process.json");
+  ASSERT_EQ(summary["cameras"].size(), 5u);
+  for (const json& camera : summary["cameras"]) {
+    const json& panel = camera["panel"];
+    EXPECT_EQ(panel["region"], "found") << panel.dump();
+    EXPECT_EQ(panel["saturated_pixels"], 0) << panel.dump();
+    EXPECT_GT(panel["pixels"].get<int>(), 300) << panel.dump();
+    // The synthetic panel: 36 px square at x 88 + shift, y 42 + shift / 2;
+    // its middle two thirds lie inside it.
+    for (const json& corner : panel["corners_xy"]) {
+      EXPECT_GE(corner[0].get<double>(), 88) << panel.dump();
+      EXPECT_LE(corner[0].get<double>(), 88 + 36 + 5) << panel.dump();
+    }
+    EXPECT_TRUE(fs::is_regular_file(root / "scene" / panel["picture"].get<std::string>()));
+    EXPECT_NEAR(panel["irradiance"].get<double>() * camera["panel_albedo"].get<double>() / M_PI,
+                camera["panel_radiance"].get<double>(), 1e-9);
+  }
+  // A region given instead, for one camera; the others still found.
+  ASSERT_EQ(
+      ddhgs(process + "--panel " + (rig / "panel").string() + " --panel-albedo " + albedo +
+                " --panel-region 2:95,50,10,10" + poses + " --out " + (root / "given").string(),
+            &out),
+      0)
+      << out;
+  const json given = read_json(root / "given" / "process.json");
+  EXPECT_EQ(given["cameras"][1]["panel"]["region"], "given (--panel-region)");
+  EXPECT_EQ(given["cameras"][1]["panel"]["pixels"], 100);
+  EXPECT_EQ(given["cameras"][0]["panel"]["region"], "found");
+
+  auto refused = [&](const std::string& args, const std::string& said) {
+    const fs::path bad = root / "bad";
+    EXPECT_EQ(ddhgs(args + " --out " + bad.string(), &out), 1) << args << "\n" << out;
+    EXPECT_NE(out.find(said), std::string::npos) << args << "\n" << out;
+    EXPECT_FALSE(fs::exists(bad)) << args;
+    for (const auto& entry : fs::directory_iterator(root))  // no temporary folder left
+      EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos) << entry.path();
+  };
+  // The rig's own camera numbers (1 to 5 here); others are named and refused.
+  refused(process + "--reference-camera -1" + poses, "its cameras: 1, 2, 3, 4, 5");
+  refused(process + "--reference-camera 0" + poses, "0 is not a band camera of the rig");
+  refused(process + "--panel " + (rig / "panel").string() + " --panel-albedo " + albedo +
+              " --panel-region 9:1,1,5,5" + poses,
+          "--panel-region: 9 is not a band camera");
+  // One capture cannot be posed: refused before COLMAP runs.
+  fs::create_directories(root / "one");
+  for (int k = 1; k <= 5; ++k)
+    fs::copy(rig / "captures" / ("IMG_0000_" + std::to_string(k) + ".tif"), root / "one");
+  refused("process " + (root / "one").string() + " --rig", "at least 3 overlapping captures");
+  // No panel in a flight capture given as the panel: the band image beside
+  // the output to look at.
+  fs::create_directories(root / "not_panel");
+  for (int k = 1; k <= 5; ++k)
+    fs::copy(rig / "panel" / ("PANL_0000_" + std::to_string(k) + ".tif"), root / "not_panel");
+  for (int k = 1; k <= 5; ++k)
+    fs::copy_file(rig / "captures" / ("IMG_0001_" + std::to_string(k) + ".tif"),
+                  root / "not_panel" / ("PANL_0000_" + std::to_string(k) + ".tif"),
+                  fs::copy_options::overwrite_existing);
+  refused(
+      process + "--panel " + (root / "not_panel").string() + " --panel-albedo " + albedo + poses,
+      "no calibration panel found");
+  EXPECT_NE(out.find("bad.panel.png"), std::string::npos) << out;
+  EXPECT_TRUE(fs::is_regular_file(root / "bad.panel.png"));
+}
+
 // Issue 31: a strip of 8 consecutive nadir captures at 70 % overlap trains
 // with default settings (the middle capture held out). The default's extra
 // random points are left out for such a one-sided capture; with them this

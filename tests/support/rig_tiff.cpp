@@ -15,7 +15,8 @@ std::string rig_xmp(const RigBandSpec& s) {
                 " xmlns:MicaSense=\"http://micasense.com/MicaSense/1.0/\"\n"
                 " Camera:BandName=\"%s\" Camera:CentralWavelength=\"%g\"\n"
                 " Camera:WavelengthFWHM=\"%g\" Camera:RigCameraIndex=\"%d\"\n"
-                " Camera:PerspectiveFocalLength=\"5.4\" Camera:PrincipalPoint=\"2.4,1.8\"\n"
+                " Camera:PerspectiveFocalLength=\"5.4\" Camera:PerspectiveFocalLengthUnits=\"mm\"\n"
+                " Camera:PrincipalPoint=\"2.4,1.8\"\n"
                 " MicaSense:CaptureId=\"%s\" Camera:RigRelatives=\"%s\">\n",
                 s.band.c_str(), s.centre_nm, s.fwhm_nm, s.rig_index, s.capture_id.c_str(),
                 s.rig_relatives.c_str());

@@ -301,9 +301,9 @@ void decide_focal_units(RigBandImage* image) {
     image->focal_units_from = "EXIF FocalLength";
     return;
   }
-  // Too short to be pixels (under a tenth of the image's width) when a
-  // resolution can put it in pixels: millimetres.
-  const bool mm = f < 0.1 * double(image->width) && image->px_per_mm > 0;
+  // Too short to be pixels (under a tenth of the image's width, a field of
+  // view over 157 degrees): millimetres.
+  const bool mm = f < 0.1 * double(image->width);
   image->focal_length_units = mm ? "mm" : "px";
   image->focal_units_from = "its size (no units tag, no EXIF FocalLength)";
 }
