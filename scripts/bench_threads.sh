@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Training on a shared machine (issue 32): prints the five ratios of its bars.
+# Training on a shared machine: prints the five ratios of its bars.
 #   1. Basil --downscale 4, 300 iterations, beside one CPU-bound process in
 #      another session, over the same run alone            (bar: <= 1.8)
 #   2. two demo-preset trainings started together, the slower over one alone
@@ -11,7 +11,7 @@
 # Bar 5 (the count follows an affinity mask and a cgroup quota) is tested by
 # tests/core/test_cpu_budget.cpp and tests/app/test_threads_cli.cpp.
 #   scripts/bench_threads.sh [BUILD_DIR] [PARTS]   PARTS: any of 1234 (default all)
-# Environment: DDHGS_SHARED_DIR (default ../shared), BASIL_ITERATIONS_4
+# Basil is the repository's copy (tests/data/basil). Environment: BASIL_ITERATIONS_4
 # (default 2000), DEMO_ITERATIONS (default: the preset's). Needs a quiet machine:
 # the load average is printed before and after.
 set -euo pipefail
@@ -19,8 +19,7 @@ cd "$(dirname "$0")/.."
 build=${1:-build}
 parts=${2:-1234}
 ddhgs=$(realpath "$build/ddhgs")
-shared=${DDHGS_SHARED_DIR:-../shared}
-basil=$(realpath "$shared/data/basil")
+basil=$(realpath tests/data/basil)
 work=$(mktemp -d /tmp/ddhgs-bench-threads.XXXXXX)
 busy_pid=
 cleanup() {

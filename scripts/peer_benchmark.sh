@@ -8,10 +8,10 @@
 #       [--variants white,black] [--no-ddhgs] [--work DIR] [--ddhgs-args "--set k=v ..."]
 #       [--opensplat-args "--refine-every 100 ..."] [--threads N]
 #
-# Needs build/ddhgs, ../shared/data/basil and ../shared/peers ($DDHGS_SHARED_DIR
-# instead of ../shared when set; OpenSplat is
-# built there on first use by build-opensplat.sh, which apt-installs
-# libopencv-dev). Prints one markdown table; everything else goes to
+# Needs build/ddhgs, the repository's Basil (tests/data/basil: images,
+# images_4 and images_8) and ../shared/peers ($DDHGS_SHARED_DIR instead of
+# ../shared when set; OpenSplat is built there on first use by
+# build-opensplat.sh, which apt-installs libopencv-dev). Prints one markdown table; everything else goes to
 # WORK/log.txt. WORK (default /tmp/ddhgs-peer-benchmark) is created by the
 # script and holds the runs. Nothing of OpenSplat enters this repository.
 #
@@ -50,8 +50,8 @@ while [ $# -gt 0 ]; do
   esac
 done
 
-shared="${DDHGS_SHARED_DIR:-$repo/../shared}"  # as the tests read it
-data="$shared/data/basil"
+shared="${DDHGS_SHARED_DIR:-$repo/../shared}"
+data="$repo/tests/data/basil"
 peers="$shared/peers"
 ddhgs="$repo/build/ddhgs"
 [ -x "$ddhgs" ] || { echo "peer_benchmark.sh: $ddhgs missing; build it first (ninja -C build ddhgs)" >&2; exit 1; }

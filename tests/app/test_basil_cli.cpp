@@ -2,13 +2,11 @@
 // field of view, white-masked backdrop, real pose error): a short run at
 // --downscale 8 must stay well above a PSNR floor on the Hyper-NeRF test
 // views, and `ddhgs eval` must find the white backdrop and measure the plant
-// on its own. The capture lives beside the repository, in ../shared/data/basil
-// ($DDHGS_SHARED_DIR/data/basil when set); without it the test is skipped.
+// on its own. The capture is part of the repository (tests/data/basil, with
+// its provenance and licence).
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
-
-#include <cstdlib>
 
 #include "io/files/atomic_file.h"
 #include "support/test_support.h"
@@ -18,17 +16,11 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path basil() {
-  const char* shared = std::getenv("DDHGS_SHARED_DIR");
-  const fs::path root = shared && *shared ? fs::path(shared) : test::source_dir() / ".." / "shared";
-  return (root / "data" / "basil").lexically_normal();
+  return test::source_dir() / "tests" / "data" / "basil";
 }
 
 TEST(BasilCli, DefaultSettingsLearnTheRealCapture) {
   const fs::path data = basil();
-  if (!fs::exists(data / "colmap" / "sparse" / "0" / "images.bin") ||
-      !fs::is_directory(data / "images_8"))
-    GTEST_SKIP() << "the real Basil capture is absent (" << data.string()
-                 << "; set DDHGS_SHARED_DIR to the folder holding data/basil)";
   // Its COLMAP layout, through links: the folder also holds transforms.json,
   // which ddhgs would read first.
   const fs::path dir = test::temp_dir("basil_cli");
@@ -77,8 +69,6 @@ TEST(BasilCli, DefaultSettingsLearnTheRealCapture) {
 
 TEST(BasilCli, InfoShowsTheNarrowFieldAndTheTurntableSpacing) {
   const fs::path data = basil();
-  if (!fs::exists(data / "transforms.json"))
-    GTEST_SKIP() << "the real Basil capture is absent (" << data.string() << ")";
   std::string out;
   ASSERT_EQ(test::run_command(test::ddhgs_binary() + " info " + data.string() + " --rgb", &out), 0)
       << out;
