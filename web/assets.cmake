@@ -1,7 +1,7 @@
 # The files of web/ that every `ddhgs report` carries, as
 # "NAME=SOURCE" pairs: NAME is "index.html" (the page) or a file name under
 # REPORT/assets/, SOURCE a path under web/. Read by the top-level
-# CMakeLists.txt (build dependencies) and by web/embed.cmake (the generator).
+# CMakeLists.txt, which hands them to cmake/embed.cmake (the generator).
 set(DDHGS_REPORT_ASSETS
     "index.html=report/index.html"
     "report.js=report/report.js"

@@ -7,6 +7,7 @@
 #include <new>
 #include <string>
 
+#include "app/build_info.h"
 #include "app/registry.h"
 #include "core/early_setup.h"
 #include "core/error.h"
@@ -35,7 +36,8 @@ std::string torch_error_text(const c10::Error& e) {
 int main(int argc, char** argv) {
   using namespace ddhgs;
   CLI::App app{"ddhgs: hyperspectral Gaussian splatting (DD-HGS) on the CPU"};
-  app.set_version_flag("--version", std::string(DDHGS_VERSION));
+  app.set_version_flag("--version",
+                       std::string("ddhgs ") + DDHGS_VERSION + ", commit " + app::build_commit());
   app.require_subcommand(1);
   // Global options are accepted after the subcommand too (ddhgs train ... --threads 2).
   app.fallthrough();

@@ -1,7 +1,7 @@
 // The static files of a report page (page template, scripts, style, and the
 // vendored uPlot and PlayCanvas libraries with their licences), carried
 // inside the binary: the definition is generated from the files listed in
-// web/assets.cmake at build time (web/embed.cmake).
+// web/assets.cmake at build time (cmake/embed.cmake).
 #pragma once
 #include <string>
 #include <vector>

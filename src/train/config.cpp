@@ -1,14 +1,9 @@
 #include "train/config.h"
 
-#include <unistd.h>
-
-#include <cstdlib>
-#include <fstream>
 #include <set>
 
 #include "core/error.h"
-#include "core/log.h"
-#include "io/files/atomic_file.h"
+#include "train/preset_lookup.h"
 #include "train/schedule.h"
 
 namespace ddhgs::train {
@@ -21,13 +16,12 @@ namespace {
 // Keys whose value may be one number or a list of numbers (one per band).
 const std::set<std::string> kNumberOrList = {"model.background"};
 
-json parse_json_file(const fs::path& path) {
-  std::string text = io::read_file(path);
+json parse_preset(const PresetText& preset) {
   try {
-    return json::parse(text);
+    return json::parse(preset.text);
   } catch (const json::exception& e) {
     // parse_error, and out_of_range for a number no double holds.
-    throw core::Error(path, "not valid JSON (" + core::message_of(e) + ")");
+    throw core::Error(preset.source, "not valid JSON (" + core::message_of(e) + ")");
   }
 }
 
@@ -104,34 +98,36 @@ void check_version(const json& config, const std::string& source) {
                                   " only (rewrite the file from configs/, or retrain)");
 }
 
-fs::path preset_path(const std::string& name_or_path, const fs::path& relative_to) {
-  fs::path p(name_or_path);
-  if (p.extension() == ".json") return p.is_absolute() ? p : relative_to / p;
-  return config_dir() / (name_or_path + ".json");
+// A preset by name (looked up: train/preset_lookup.h) or by a .json path
+// relative to `relative_to`.
+PresetText locate(const std::string& name_or_path, const fs::path& relative_to) {
+  const fs::path p(name_or_path);
+  if (p.extension() == ".json") return read_preset_file(p.is_absolute() ? p : relative_to / p);
+  return find_preset(name_or_path);
 }
 
 const json& schema() {
   static const json s = [] {
-    fs::path path = config_dir() / "default.json";
-    json j = parse_json_file(path);
-    check_version(j, path.string());
+    const PresetText preset = find_preset("default");
+    json j = parse_preset(preset);
+    check_version(j, preset.source);
     return j;
   }();
   return s;
 }
 
-json load_chain(const fs::path& path, int depth) {
-  if (depth > 16) throw core::Error(path, "'extends' chain is too long (a cycle?)");
-  if (!fs::exists(path)) throw core::Error(path, "no such preset");
-  json j = parse_json_file(path);
-  if (!j.is_object()) throw core::Error(path, "expected a JSON object");
-  check_version(j, path.string());
+json load_chain(const PresetText& preset, int depth) {
+  const std::string& source = preset.source;
+  if (depth > 16) throw core::Error(source, "'extends' chain is too long (a cycle?)");
+  json j = parse_preset(preset);
+  if (!j.is_object()) throw core::Error(source, "expected a JSON object");
+  check_version(j, source);
   json base = schema();
   if (j.contains("extends")) {
-    if (!j["extends"].is_string()) throw core::Error(path, "'extends' must be a preset name");
-    base = load_chain(preset_path(j["extends"].get<std::string>(), path.parent_path()), depth + 1);
+    if (!j["extends"].is_string()) throw core::Error(source, "'extends' must be a preset name");
+    base = load_chain(locate(j["extends"].get<std::string>(), preset.directory), depth + 1);
   }
-  check_object(schema(), j, "", path.string(), false);
+  check_object(schema(), j, "", source, false);
   j.erase("extends");
   base.merge_patch(j);
   return base;
@@ -139,27 +135,10 @@ json load_chain(const fs::path& path, int depth) {
 
 }  // namespace
 
-fs::path config_dir() {
-  if (const char* env = std::getenv("DDHGS_CONFIG_DIR"))
-    if (*env) return fs::path(env);
-  std::error_code ec;
-  fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec)
-    for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
-      if (fs::exists(dir / "configs" / "default.json")) return dir / "configs";
-      if (fs::exists(dir / "share" / "ddhgs" / "configs" / "default.json"))
-        return dir / "share" / "ddhgs" / "configs";
-      if (dir == dir.root_path()) break;
-    }
-  return "/usr/share/ddhgs/configs";
-}
-
 json load_preset(const std::string& name_or_path) {
-  fs::path path = preset_path(name_or_path, fs::current_path());
-  if (!fs::exists(path))
-    throw core::Error(path, "no such preset (presets live in " + config_dir().string() + ")");
-  json config = load_chain(path, 0);
-  validate_config(config, path.string());
+  const PresetText preset = locate(name_or_path, fs::current_path());
+  json config = load_chain(preset, 0);
+  validate_config(config, preset.source);
   return config;
 }
 

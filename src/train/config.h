@@ -19,13 +19,10 @@ namespace ddhgs::train {
 // of another version is refused with one line naming both versions.
 constexpr int kConfigFormatVersion = 2;
 
-// Folder holding default.json: $DDHGS_CONFIG_DIR, else the nearest configs/
-// above the running executable, else /usr/share/ddhgs/configs.
-std::filesystem::path config_dir();
-
-// A preset by name ("demo" -> configs/demo.json) or by path to a .json file,
-// with its "extends" chain resolved and every key validated. The result has
-// every key of default.json and no "extends".
+// A preset by name ("demo": demo.json where train/preset_lookup.h finds it,
+// else the built-in one) or by path to a .json file, with its "extends"
+// chain resolved and every key validated. The result has every key of
+// default.json and no "extends".
 nlohmann::json load_preset(const std::string& name_or_path);
 
 // Validates a resolved config (e.g. a run's config.json) read from `source`.
