@@ -3,7 +3,8 @@
 #   scripts/setup.sh               runtime + build dependencies, then the ddhgs program
 #   scripts/setup.sh --with-tests  also the test-only packages, then everything (tests,
 #                                  benchmarks) with warnings as errors
-# Quiet when everything is already there. Environment: BUILD_DIR (default build).
+# Quiet when everything is already there; while building, one progress line.
+# Environment: BUILD_DIR (default build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=lib/packages.sh
@@ -52,16 +53,52 @@ if [ ! -f "$build_dir/build.ninja" ] || { [ "$werror" = ON ] && [ "$configured" 
   }
   rm -f "$build_dir.cmake.log"
 fi
-# ninja's own status decides (a filter in a pipeline with `|| true` would
-# hide a failed build and leave stale binaries to be tested).
+# The build shows one line of progress (steps done of all, seconds so far):
+# rewritten in place on a terminal, else printed once a minute (CI's log
+# stays short). ninja's whole output goes to the log, shown in full when the
+# build fails. ninja's own status decides (a filter's would hide a failed
+# build and leave stale binaries to be tested).
 build_log="$build_dir.build.log"
 began=$SECONDS
-if ! ninja -C "$build_dir" -j "$(nproc)" --quiet "${targets[@]}" >"$build_log" 2>&1; then
+show_progress() {
+  local line="" partial="" progress done_=0 total=0 shown=$SECONDS tty=0
+  [ -t 2 ] && tty=1
+  exec 3>"$build_log"
+  while :; do
+    if IFS= read -r -t 1 line; then
+      line=$partial$line partial=
+      printf '%s\n' "$line" >&3
+      if [[ $line =~ ^\[([0-9]+)/([0-9]+)\]\  ]]; then
+        done_=${BASH_REMATCH[1]} total=${BASH_REMATCH[2]}
+      fi
+    elif [ $? -gt 128 ]; then # a second without a line: keep what came of it
+      partial+=$line
+    else
+      [ -n "$partial$line" ] && printf '%s\n' "$partial$line" >&3
+      break
+    fi
+    progress="setup: building, $done_ of $total steps, $((SECONDS - began)) s"
+    if [ "$tty" = 1 ]; then
+      printf '\r%s ' "$progress" >&2
+    elif ((SECONDS - shown >= 60)); then
+      echo "$progress" >&2
+      shown=$SECONDS
+    fi
+  done
+  exec 3>&-
+  [ "$tty" = 1 ] && printf '\r\033[K' >&2
+  return 0
+}
+if ! NINJA_STATUS='[%f/%t] ' ninja -C "$build_dir" -j "$(nproc)" "${targets[@]}" 2>&1 | show_progress; then
   cat "$build_log" >&2
-  echo "setup: build failed (log: $build_log)" >&2
+  echo "setup: build failed after $((SECONDS - began)) s (log: $build_log)" >&2
   exit 1
 fi
-grep -v '^ninja: no work to do' "$build_log" || true
-grep -q '^ninja: no work to do' "$build_log" ||
-  echo "setup: built ${targets[*]} in $((SECONDS - began)) s" >&2
+# What the compiler said besides the steps and a re-run of cmake (warnings,
+# without -Werror).
+grep -vE '^\[[0-9]+/[0-9]+\] |^ninja: (Entering directory|no work to do)|^-- |^Re-running CMake' "$build_log" || true
+# Quiet when nothing was built: the glob check ([0/N]) and reading the commit
+# (cmake/version.cmake) run every time.
+steps=$(grep -E '^\[[1-9][0-9]*/[0-9]+\] ' "$build_log" | grep -cv 'Reading the commit' || true)
+[ "$steps" = 0 ] || echo "setup: built ${targets[*]} in $((SECONDS - began)) s ($steps steps)" >&2
 rm -f "$build_log"
