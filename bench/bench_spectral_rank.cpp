@@ -1,5 +1,5 @@
 // How much of a scene's spectra a rank-K subspace keeps, and how much noise
-// it drops (issue 30): the noisy views projected onto the first K principal
+// it drops: the noisy views projected onto the first K principal
 // components of their own pixels, measured against the clean cubes, over all
 // bands and over the 10 % of bands with the lowest SNR. An upper bound of
 // what a subspace colour model can gain from its rank alone (a model also

@@ -1,4 +1,4 @@
-// The check `train` runs before its first iteration (issue 34): every
+// The check `train` runs before its first iteration: every
 // compressed view decoded once. Writes a scene of LZW-compressed 16-bit TIFF
 // views (smooth spectra with noise, as a capture) and times
 // train::check_scene_before_training on one thread and on all of them.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Full-size check of `ddhgs process` (issue 7): synthesises a scene, hides its
+# Full-size check of `ddhgs process`: synthesises a scene, hides its
 # poses, recovers them with COLMAP, reports rotation and position errors after
 # a similarity alignment, and the held-out PSNR of training on the true and on
 # the recovered poses. It runs the CI test ProcessCli.RecoversSyntheticPoses...

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 31's pose bar at a sensor-like size: `ddhgs synth --preset rig` (five
+# The rig's pose accuracy at a sensor-like size: `ddhgs synth --preset rig` (five
 # band cameras with known rig rotations), `ddhgs process --rig` (COLMAP on
 # the reference camera's images, the other cameras placed by their rig
 # rotations), then every band camera's rotation error against the truth

@@ -1,5 +1,5 @@
 #!/bin/bash
-# Per band against the spectral-subspace colour model (issue 30), against
+# Per band against the spectral-subspace colour model, against
 # clean truth: same scenes, seeds and iterations. Writes into DIR (default
 # a new folder under /tmp) and prints one line per run: clean PSNR and SAM,
 # the mean PSNR of the 10 % of bands with the lowest SNR, bytes per Gaussian.

@@ -1,10 +1,11 @@
 #!/bin/bash
-# Time to quality (issue 30, bar 4): a 640x512, 141-band synthetic scene with
-# 112 views (101 training, 11 held out) trained for several iteration counts,
-# one run after the other. Prints, per run, the wall clock, the training time
-# and the held-out views' PSNR against clean truth, its gap to the longest
-# finished run with the default settings, and the test-PSNR curve against
-# training minutes and against wall minutes (the issue's clock).
+# Time to quality at 101 training views (docs/benchmarks.md): a 640x512,
+# 141-band synthetic scene with 112 views (101 training, 11 held out) trained
+# for several iteration counts, one run after the other. Prints, per run, the
+# wall clock, the training time and the held-out views' PSNR against clean
+# truth, its gap to the longest finished run with the default settings, and
+# the test-PSNR curve against training minutes and against wall minutes (the
+# clock the bar is set in).
 #
 #   scripts/time_to_quality.sh [DIR] [RUNS (default "6000 12000 30000")]
 #

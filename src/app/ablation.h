@@ -20,8 +20,8 @@ struct AblationRow {
   bool wavelength_encoder = false;
   bool diffusion = false;
   int spectral_rank = 0;  // model.spectral_rank (-1: the scene's signal rank)
-  // Issue 33: the denoiser learns from auxiliary models' renders of views
-  // they never saw (diffusion.pairs=folds, no joint term), and with
+  // Novel-view pairs: the denoiser learns from auxiliary models' renders of
+  // views they never saw (diffusion.pairs=folds, no joint term), and with
   // `distill` a quarter of the iterations more distil it into the Gaussians.
   bool fold_pairs = false;
   bool distill = false;

@@ -90,7 +90,7 @@ BorderCheck border_of(const io::Scene& scene, const io::SceneReport& r) {
 }
 
 // Principal components of the training views' pixel spectra: the rank a
-// subspace colour model needs (issue 30). Like the border, read only when
+// subspace colour model needs (model.spectral_rank). Like the border, read only when
 // every view's header checked out.
 struct SpectraCheck {
   std::optional<core::SpectralPca> pca;

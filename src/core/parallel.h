@@ -6,7 +6,7 @@
 // round trip of the slowest thread. When another process competes for the
 // cores, a woken worker waits milliseconds for a CPU, and with hundreds of
 // loops per training iteration a run beside one busy process took 8x as
-// long (docs/benchmarks.md, issue 32). Here a loop ends when its work is
+// long (docs/benchmarks.md, "Shared machines"). Here a loop ends when its work is
 // done: the chunks are claimed from a shared counter, the calling thread
 // claims too, and a worker that wakes after the last chunk was claimed finds
 // nothing and sleeps again. Nobody waits for a thread that has no work.

@@ -2,7 +2,7 @@
 // really span. Plant and material spectra lie close to a low-dimensional
 // subspace; what lies beyond it is mostly sensor noise. `ddhgs info` reports
 // the rank that keeps 99.9 % of the variance, and a subspace colour model
-// starts its band basis from these components (issue 30).
+// starts its band basis from these components (model.spectral_rank).
 #pragma once
 #include "core/tensor.h"
 

@@ -61,9 +61,10 @@ struct DiffusionTermOptions {
   // Inference defaults for eval and render (flags override).
   model::SamplerOptions sampler;
 
-  // Issue 33. joint: the paper's term during the Gaussian iterations (false:
-  // the denoiser is trained only afterwards, and the Gaussian iterations cost
-  // what they cost without the stage).
+  // Where the denoiser's pairs come from, and when it learns. joint: the
+  // paper's term during the Gaussian iterations (false: the denoiser is
+  // trained only afterwards, and the Gaussian iterations cost what they cost
+  // without the stage).
   bool joint = true;
   // What the fine-tuning learns from: renders of the training views by the
   // Gaussians that fitted them, or renders by an auxiliary model that did not

@@ -1,4 +1,4 @@
-// What the denoiser learns from and what it teaches back (issue 33).
+// What the denoiser learns from and what it teaches back.
 //
 // Training pairs that look like novel views: the training views are split
 // into interleaved folds, and a short auxiliary model trained without a fold

@@ -1,4 +1,4 @@
-// The training loop of N-band Gaussian splatting (issue 4): one training view
+// The training loop of N-band Gaussian splatting: one training view
 // per iteration, weighted losses, fused Adam, adaptive density control,
 // metrics, checkpoints and bit-for-bit resume. Files: train/run_folder.h.
 // With the denoiser on, `iterations` joint steps are followed by

@@ -169,9 +169,9 @@ TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
   EXPECT_NE(out.find("no denoiser.pt"), std::string::npos) << out;
 }
 
-// Issue 33: the denoiser learns from renders of views that auxiliary models
-// never saw, is checked on training views it did not learn from, and is
-// distilled back into the Gaussians through pseudo-views between cameras.
+// Novel-view pairs: the denoiser learns from renders of views that auxiliary
+// models never saw, is checked on training views it did not learn from, and
+// is distilled back into the Gaussians through pseudo-views between cameras.
 TEST(DenoiserCli, FoldPairsValidationAndDistillationResumeBitForBit) {
   const fs::path runs = test::temp_dir("denoiser_fold_runs");
   const fs::path straight = runs / "straight", plain = runs / "plain", stopped = runs / "stopped";
@@ -261,7 +261,7 @@ TEST(DenoiserCli, FoldPairsValidationAndDistillationResumeBitForBit) {
   }
 }
 
-// Issue 33's cheaper pair sources, one auxiliary model each. An earlier
+// The cheaper pair sources, one auxiliary model each. An earlier
 // checkpoint is recomputed with the run's own seed and schedule: taken at the
 // run's end it is the run itself, so its pairs are the training pairs to the
 // last bit; earlier, and with turned cameras, the renders fit their captures

@@ -126,7 +126,7 @@ TEST(RigCli, CapturesBecomeAReflectanceSceneThatTrainsLikeTheTruth) {
   std::printf("panel path: worst rotation %.2g deg, worst reflectance bias %.2f %%\n",
               panel.worst_rotation_deg, 100 * panel.worst_reflectance);
   EXPECT_LT(panel.worst_rotation_deg, 0.01);
-  EXPECT_LT(panel.worst_reflectance, 0.02);  // issue 31: within 2 % through the panel
+  EXPECT_LT(panel.worst_reflectance, 0.02);  // within 2 % through the panel
   const json summary = read_json(root / "panel_scene" / "process.json");
   EXPECT_EQ(summary["cameras"][0]["reflectance_from"], "panel");
   // The split keeps a capture's bands together.
@@ -159,8 +159,8 @@ TEST(RigCli, CapturesBecomeAReflectanceSceneThatTrainsLikeTheTruth) {
             &out),
       0)
       << out;
-  // And the same captures as registered cubes (issue 31's comparison), at
-  // the same iteration count.
+  // And the same captures as registered cubes, one cube per capture with
+  // every band, at the same iteration count: the rig scene must come close.
   ASSERT_EQ(
       ddhgs("train " + (rig / "cubes").string() + " --out " + (root / "cube_run").string() + train,
             &out),
@@ -174,7 +174,7 @@ TEST(RigCli, CapturesBecomeAReflectanceSceneThatTrainsLikeTheTruth) {
       "%.2f dB\n",
       psnr, truth_psnr, cube_psnr);
   EXPECT_GT(psnr, truth_psnr - 1.0);
-  EXPECT_GT(psnr, cube_psnr - 1.0);  // issue 31, bar 1
+  EXPECT_GT(psnr, cube_psnr - 1.0);  // within 1 dB of the registered cubes
 
   // Every command a user runs next works on the rig scene.
   const std::string run = (root / "run").string();
@@ -300,7 +300,7 @@ TEST(RigCli, PanelFoundWhereItLiesAndBadRigInputStopsFirst) {
   EXPECT_TRUE(fs::is_regular_file(root / "bad.panel.png"));
 }
 
-// Issue 31: a strip of 8 consecutive nadir captures at 70 % overlap trains
+// A strip of 8 consecutive nadir captures at 70 % overlap trains
 // with default settings (the middle capture held out). The default's extra
 // random points are left out for such a one-sided capture; with them this
 // scene reached 26.4 dB instead of 31.7 (docs/benchmarks.md).

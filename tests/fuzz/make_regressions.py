@@ -2,7 +2,7 @@
 """Writes tests/fuzz/regressions/: reader inputs (tests/fuzz/fuzz_target.h
 encoding: one byte naming the reader, then the file) that once crashed a
 reader, overflowed its size arithmetic or made it allocate what a corrupt
-header claimed (issue 18). test_io replays them; add any input the fuzzer
+header claimed. test_io replays them; add any input the fuzzer
 finds (scripts/sanitize.sh leaves it in build-sanitize/fuzz-artifacts/).
 
     make_regressions.py [DIR]

@@ -1,4 +1,4 @@
-// Issue 18: every size a file declares is checked against the bytes it
+// Every size a file declares is checked against the bytes it
 // holds before anything is allocated or read. Each case here was first seen
 // failing: read past its buffer (.pt), overflowed its size arithmetic
 // (ENVI), allocated what a corrupt header asked for (TIFF, PNG), trusted a

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Feeds ddhgs malformed inputs, one at a time, and lists the error lines that
-name neither the file nor the flag at fault, or that carry a library's raw text
-(issue 18). Every case damages a copy inside WORK; nothing else is touched.
+name neither the file nor the flag at fault, or that carry a library's raw text.
+Every case damages a copy inside WORK; nothing else is touched.
 
     probe_errors.py DDHGS_BINARY WORK      exit 1 when any case fails the rule
 
@@ -302,7 +302,7 @@ def flag_cases(p):
 
 
 def round2_cases(p):
-    """Issue 34's list: nonsense accepted silently, library text, wrong names."""
+    """The second round: nonsense accepted silently, library text, wrong names."""
     for name, extra, named in [
         ("iterations_overflow", ["--iterations", "99999999999999999999"], ["--iterations"]),
         ("iterations_huge", ["--iterations", "2000000000"], ["--iterations"]),

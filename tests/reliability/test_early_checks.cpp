@@ -1,4 +1,4 @@
-// Check at the start, not after the last iteration (issue 18): input a run
+// Check at the start, not after the last iteration: input a run
 // cannot use ends the command before any work with one line naming the file
 // or flag; a scene without held-out views trains; a diverging run stops at
 // once. Each case was first seen failing (an error after training, a NaN
@@ -100,7 +100,7 @@ TEST(EarlyChecks, ABadHeldOutViewOrCleanCubeFailsBeforeTheFirstIteration) {
 
 // A compressed training view is decoded once before the first iteration: a
 // corrupt one fails at the start, naming the file, not when training first
-// draws it (issue 34; with one iteration it was never drawn at all).
+// draws it (with one iteration it was never drawn at all).
 TEST(EarlyChecks, ACorruptCompressedTrainingViewFailsBeforeTheFirstIteration) {
   const fs::path scene = scene_copy("early_corrupt_png");
   const fs::path run = scene.parent_path() / "run";

@@ -1,5 +1,5 @@
-// Every error a user can cause names the file or flag and the problem
-// (issue 18): tests/reliability/probe_errors.py feeds ddhgs about 150
+// Every error a user can cause names the file or flag and the problem:
+// tests/reliability/probe_errors.py feeds ddhgs about 150
 // malformed inputs and lists each error line that names neither, or that
 // carries a library's raw text. It found about 40 such lines at first.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// A full disk (issue 18), without filling one: the full_disk_shim preloaded
+// A full disk, without filling one: the full_disk_shim preloaded
 // into ddhgs makes writes below one temporary folder fail with ENOSPC, as a
 // filesystem out of space does. Each case was first seen failing: the
 // checkpoint write ended the process through std::terminate (exit 134, a

@@ -1,4 +1,4 @@
-// Never lose a user's data (issue 18): what --force and every other writer
+// Never lose a user's data: what --force and every other writer
 // may touch, concurrent writers, SIGTERM. Every destructive command here is
 // pointed at a folder inside this test's own temporary folder; the home
 // folder is a temporary stand-in given through $HOME.

@@ -1,4 +1,4 @@
-// Issue 34's six checks, as a user would meet them: nothing a user put in or
+// Six checks of a user's own files, as a user would meet them: nothing a user put in or
 // beside a ddhgs output is lost, links are not followed, and a mistyped
 // --downscale is named. Each works inside its own temporary folder.
 #include <gtest/gtest.h>

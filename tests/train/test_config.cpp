@@ -293,7 +293,7 @@ TEST(Config, RunConfigsFromEarlierVersionsReadWithTheValuesTheyTrainedWith) {
             std::string::npos);
 }
 
-// Issue 18: values a run cannot use end the command before any work, naming
+// Values a run cannot use end the command before any work, naming
 // the key (each of these was accepted and failed only after training, or
 // trained on NaN).
 TEST(Config, ValuesOutsideTheirRangeNameTheKey) {
@@ -327,7 +327,7 @@ TEST(Config, ValuesOutsideTheirRangeNameTheKey) {
 namespace {
 
 // Every number default.json holds (the schema) has a range, so no key takes
-// NaN, a negative rate or a count that runs until killed (issue 34).
+// NaN, a negative rate or a count that runs until killed.
 void expect_ranges(const nlohmann::json& node, const std::string& prefix) {
   for (const auto& [key, value] : node.items()) {
     const std::string path = prefix.empty() ? key : prefix + "." + key;

@@ -200,7 +200,7 @@ TEST(DiffusionFinetune, OptionsAndLearningRateSchedule) {
             }).find("preset.json: key 'diffusion.finetune_batch' is 0"),
             std::string::npos);
 
-  // Issue 33's keys: the defaults are the paper's stage, then each one read.
+  // The pair-source keys: the defaults are the paper's stage, then each one read.
   config["diffusion"]["finetune_batch"] = 3;
   o = train::parse_run_config(config, "default").diffusion;
   EXPECT_TRUE(o.joint);
