@@ -27,8 +27,9 @@ if [ "$with_tests" = 1 ]; then
   # PyTorch for .pt files written by torch.save; headless Chromium opens the
   # HTML report (tests/app/test_report_cli.cpp).
   # PIL decodes PNG/JPEG/TIFF independently of ours; clang-format checks the
-  # tree's formatting.
-  packages+=(python3 python3-numpy python3-torch python3-pil chromium clang-format)
+  # tree's formatting; git makes the scratch checkout that tests the commit
+  # `--version` names.
+  packages+=(python3 python3-numpy python3-torch python3-pil chromium clang-format git)
 fi
 
 ensure_packages setup "${packages[@]}"
