@@ -55,21 +55,30 @@ const AdamGroup& Adam::group(const std::string& name) const {
 }
 
 void Adam::step() {
-  step({}, {});
+  step(std::vector<RowSet>{});
 }
 
-void Adam::step(const std::vector<std::string>& row_prefixes, const torch::Tensor& rows) {
+namespace {
+
+// The rows of the first set naming the group; undefined: every row.
+torch::Tensor rows_of(const std::string& group, const std::vector<Adam::RowSet>& row_sets) {
+  for (const Adam::RowSet& set : row_sets)
+    for (const std::string& prefix : set.prefixes)
+      if (group.rfind(prefix, 0) == 0) return set.rows;
+  return {};
+}
+
+}  // namespace
+
+void Adam::step(const std::vector<RowSet>& row_sets) {
   torch::NoGradGuard no_grad;
   for (auto& g : groups_) {
     const torch::Tensor& grad_ref = g.param.grad();
     if (!grad_ref.defined() || g.param.numel() == 0) continue;
     auto grad = grad_ref.to(torch::kFloat32).contiguous();
     ++g.step;
-    const bool some_rows = rows.defined() && std::any_of(row_prefixes.begin(), row_prefixes.end(),
-                                                         [&](const std::string& p) {
-                                                           return g.name.rfind(p, 0) == 0;
-                                                         });
-    if (!some_rows) {
+    const torch::Tensor rows = rows_of(g.name, row_sets);
+    if (!rows.defined()) {
       fused_adam_update(g.param.data_ptr<float>(), grad.data_ptr<float>(),
                         g.exp_avg.data_ptr<float>(), g.exp_avg_sq.data_ptr<float>(),
                         g.param.numel(), g.lr, g.step, options_);

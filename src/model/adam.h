@@ -45,13 +45,19 @@ class Adam {
   // Updates every group whose parameter has a gradient, then leaves the
   // gradients as they are (call zero_grad before the next backward).
   void step();
-  // As step(), but a group whose name starts with one of row_prefixes updates
-  // only rows `rows` ([R] int64, along dim 0; undefined: all rows): the others
-  // keep their values and both moments, as if the step had not happened for
-  // them. For parameters with one row per band when a step measured some
-  // bands (train/band_draw.h): plain Adam would move the others on momentum
-  // alone. Bias correction uses the group's step count.
-  void step(const std::vector<std::string>& row_prefixes, const torch::Tensor& rows);
+  // Some rows of the groups whose names start with one of `prefixes`:
+  // [R] int64 indices along dim 0 (undefined: all rows).
+  struct RowSet {
+    std::vector<std::string> prefixes;
+    torch::Tensor rows;
+  };
+  // As step(), but a group named by a row set (the first that names it)
+  // updates only that set's rows: the others keep their values and both
+  // moments, as if the step had not happened for them. For parameters with
+  // one row per band when a step measured some bands (train/band_draw.h), or
+  // one row per view when it measured one view: plain Adam would move the
+  // others on momentum alone. Bias correction uses the group's step count.
+  void step(const std::vector<RowSet>& row_sets);
   void zero_grad();
 
   // For a group whose gradient arrives in blocks of rows during the backward

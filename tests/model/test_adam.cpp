@@ -102,7 +102,7 @@ TEST(Adam, StepOnRowsLeavesTheOtherRowsAndTheirMomentsAsTheyWere) {
     b.group("band/p").exp_avg_sq.index_put_({undrawn}, keep_v);
     sparse.mutable_grad() = grad.clone();
     other.mutable_grad() = grad.clone();
-    a.step({"band/"}, rows);
+    a.step({{{"band/"}, rows}});
     EXPECT_TRUE(torch::equal(sparse.index({undrawn}), keep));
   }
   EXPECT_TRUE(torch::equal(sparse, dense));
@@ -111,6 +111,27 @@ TEST(Adam, StepOnRowsLeavesTheOtherRowsAndTheirMomentsAsTheyWere) {
   // A group the prefixes do not name takes every row: all of it moved.
   EXPECT_TRUE(((other - start).abs() > 0).all().item<bool>());
   EXPECT_EQ(a.group("band/p").step, 3);
+}
+
+// Two row sets: each group steps the rows of the first set that names it.
+TEST(Adam, EachRowSetStepsItsOwnGroupsRows) {
+  torch::manual_seed(5);
+  auto bands = torch::randn({6, 2}).requires_grad_(true);
+  auto views = torch::randn({4, 3}).requires_grad_(true);
+  const auto bands_start = bands.detach().clone(), views_start = views.detach().clone();
+  model::Adam adam;
+  adam.add("colour/basis", bands, 1e-2);
+  adam.add("exposure/log_gain", views, 1e-2);
+  bands.mutable_grad() = torch::ones({6, 2});
+  views.mutable_grad() = torch::ones({4, 3});
+  adam.step({{{"colour/"}, torch::tensor({1, 4}, torch::kInt64)},
+             {{"exposure/", "colour/"}, torch::tensor({2}, torch::kInt64)}});
+  const auto moved = [](const torch::Tensor& now, const torch::Tensor& before) {
+    return (now.detach() != before).any(1);
+  };
+  EXPECT_TRUE(torch::equal(moved(bands, bands_start),
+                           torch::tensor({false, true, false, false, true, false})));
+  EXPECT_TRUE(torch::equal(moved(views, views_start), torch::tensor({false, false, true, false})));
 }
 
 TEST(Adam, SkipsParametersWithoutGradients) {
