@@ -2,6 +2,7 @@
 // clean ground truth. Every size is a flag overriding the preset.
 #include <memory>
 
+#include "app/number_list.h"
 #include "app/registry.h"
 #include "core/log.h"
 #include "io/files/output_folder.h"
@@ -17,6 +18,7 @@ struct SynthArgs {
   synth::SynthConfig flags;  // values of the flags given; others unused
   bool no_ground = false;
   bool noisy_edges = false;
+  std::string light_factors;  // comma-separated, one per capture
 };
 
 // Copies each given flag onto the preset's configuration.
@@ -43,6 +45,9 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   set("--noise-scale", c.noise_scale, f.noise_scale);
   set("--points", c.points, f.points);
   set("--point-jitter", c.point_jitter, f.point_jitter);
+  set("--light-change", c.light_change, f.light_change);
+  if (!a.light_factors.empty())
+    c.light_factors = parse_number_list(a.light_factors, "--light-factors");
   if (a.no_ground) c.ground = false;
   if (a.noisy_edges) c.noisy_edges = true;
   return c;
@@ -79,6 +84,13 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--noise-scale", f.noise_scale, "Multiplies the noise standard deviation");
   cmd->add_option("--points", f.points, "Sparse points in points.ply (about)");
   cmd->add_option("--point-jitter", f.point_jitter, "Point position noise, scene units");
+  cmd->add_option("--light-change", f.light_change,
+                  "Rig presets: each capture's true light is its DLS reading times a factor "
+                  "drawn from the seed within 1 +- this (0.2: up to 20 %), which the DLS and "
+                  "the panel do not see; the factors go to synth.json");
+  cmd->add_option("--light-factors", args->light_factors,
+                  "Rig presets: each capture's light factor, one per capture "
+                  "(\"1,0.8,1.1,...\"), instead of drawn ones");
   cmd->add_flag("--no-ground", args->no_ground, "Leave out the ground disc");
   cmd->add_flag("--noisy-edges", args->noisy_edges, "Much noisier edge bands (ablations)");
   return [args, cmd] {

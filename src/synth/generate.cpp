@@ -117,6 +117,19 @@ void validate(const SynthConfig& c) {
                     c.min_elevation_deg <= c.max_elevation_deg,
                 "synth: expected -90 < --elevation-min <= --elevation-max < 90 degrees");
   core::require(c.point_jitter >= 0, "synth: expected --point-jitter >= 0");
+  core::require(c.light_change >= 0 && c.light_change < 1,
+                "synth: expected 0 <= --light-change < 1");
+  core::require(c.light_change == 0 || c.light_factors.empty(),
+                "synth: give --light-change or --light-factors, not both");
+  core::require(c.rig || (c.light_change == 0 && c.light_factors.empty()),
+                "synth: --light-change and --light-factors are for the rig presets (rig, "
+                "rig-nadir)");
+  core::require(c.light_factors.empty() || int(c.light_factors.size()) == c.views,
+                "synth: --light-factors has " + std::to_string(c.light_factors.size()) +
+                    " values; expected one per capture (--views " + std::to_string(c.views) + ")");
+  for (double f : c.light_factors)
+    core::require(std::isfinite(f) && f > 0 && f <= 10,
+                  "synth: expected every --light-factors value > 0 and <= 10");
   // One view is rendered as float32 [H, W, B] at a time; more than this is a typo.
   const double view_gib = double(c.width) * double(c.height) * double(c.bands) * 4.0 / (1 << 30);
   core::require(c.width <= 16384 && c.height <= 16384 && view_gib <= 4.0,

@@ -40,6 +40,13 @@ struct SynthConfig {
   // ground at this forward overlap (0 < overlap < 1), instead of a ring.
   bool nadir = false;
   double overlap = 0.7;
+  // With rig: each capture's true illumination is what its DLS reports (and
+  // the panel capture saw) times a factor, as under a passing cloud the DLS
+  // does not see: light_factors, one per capture, or when that is empty
+  // factors drawn from the seed uniformly within 1 +- light_change (0: the
+  // light never changes).
+  double light_change = 0;
+  std::vector<double> light_factors;
 
   std::vector<double> wavelengths_nm() const;
 };

@@ -67,6 +67,17 @@ std::string band_file(const std::string& stem, int index) {
 
 }  // namespace
 
+std::vector<double> capture_light_factors(const SynthConfig& config) {
+  if (!config.light_factors.empty()) return config.light_factors;
+  std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), 0x11647u};
+  std::mt19937_64 rng(seq);
+  std::uniform_real_distribution<double> change(-config.light_change, config.light_change);
+  std::vector<double> factors;
+  for (int c = 0; c < config.views; ++c)
+    factors.push_back(config.light_change > 0 ? 1 + change(rng) : 1.0);
+  return factors;
+}
+
 std::vector<RigBandCamera> rededge_rig() {
   return {{1, "Blue", 475, 32, {0, 0, 0}, 1.05, 0.52},
           {2, "Green", 560, 27, {0.45, -0.30, 0.20}, 1.30, 0.53},
@@ -95,6 +106,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     const std::vector<core::Camera> references =
         config.nadir ? nadir_strip(scene, options, config.overlap) : turntable_rig(scene, options);
     const core::Intrinsics& k = references.front().intrinsics;
+    const std::vector<double> light = capture_light_factors(config);
 
     // The panel capture as one is taken in the field: a grey panel (radiance
     // albedo x irradiance / pi) lying off-centre on textured tarmac, a
@@ -170,7 +182,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         const torch::Tensor noisy = add_noise(clean, setup, rng);
         const std::string name = std::string(stem) + ".npy";
         io::write_npy(tmp / "cubes" / "hyperspectral" / name,
-                      noisy.index_select(2, band_order).contiguous());
+                      (noisy * float(light[size_t(c)])).index_select(2, band_order).contiguous());
         io::write_npy(tmp / "cubes" / "clean" / name,
                       clean.index_select(2, band_order).contiguous());
         io::TransformsFrame frame;
@@ -191,9 +203,10 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         io::RigBandImage b = band_metadata(band, k, "capture" + std::to_string(c), 0.0004);
         b.file = tmp / "captures" / band_file(stem, band.index);
         // The clean value is the reflectance factor a perfect conversion
-        // recovers: radiance = value x irradiance / pi.
-        io::write_rig_band_image(b,
-                                 io::radiance_to_counts(b, noisy * float(band.irradiance / kPi)));
+        // recovers: radiance = value x irradiance / pi, under the capture's
+        // own light (its factor), which the DLS record does not show.
+        io::write_rig_band_image(
+            b, io::radiance_to_counts(b, noisy * float(light[size_t(c)] * band.irradiance / kPi)));
         const std::string name = std::string(stem) + "_" + std::to_string(band.index) + ".npy";
         io::write_npy(tmp / "truth" / "bands" / name, clean.unsqueeze(2));
         io::write_npy(tmp / "truth" / "clean" / name, clean.unsqueeze(2));
@@ -236,6 +249,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     j["rings"] = config.rings;
     j["flight"] = config.nadir ? "nadir strip" : "ring";
     if (config.nadir) j["overlap"] = config.overlap;
+    j["light_factors"] = light;
     j["supersample"] = config.supersample;
     j["noise_scale"] = config.noise_scale;
     j["layout"] =

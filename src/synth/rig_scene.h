@@ -14,7 +14,8 @@
 //   cubes/                   the same captures as registered five-band cubes
 //                            from the reference pose (noisy and clean/), as a
 //                            hyperspectral camera would take them
-//   synth.json               the parameters, rig rotations and panel albedo
+//   synth.json               the parameters, rig rotations, panel albedo and
+//                            each capture's light factor (light_factors)
 #pragma once
 #include <filesystem>
 #include <string>
@@ -35,6 +36,11 @@ struct RigBandCamera {
 
 // The five band cameras, in rig order.
 std::vector<RigBandCamera> rededge_rig();
+
+// Each capture's true illumination over what its DLS reports, one factor per
+// capture (config.views): config.light_factors when given, else drawn from
+// the seed uniformly within 1 +- config.light_change.
+std::vector<double> capture_light_factors(const SynthConfig& config);
 
 SynthResult write_synthetic_rig(const SynthConfig& config, const std::filesystem::path& out,
                                 bool force);
