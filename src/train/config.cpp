@@ -182,6 +182,9 @@ constexpr AddedKey kAddedKeys[] = {
     {"loss.view_fraction_from_pixels", "0"},  // every view was cropped at view_fraction
     {"optim.lr_decay_from_fraction", "0.9"},  // rates were constant
     {"optim.lr_final_scale", "1"},
+    {"model.exposure_correction", "\"off\""},
+    {"optim.exposure_lr", "0.01"},    // correction off
+    {"loss.exposure_prior", "0.01"},  // correction off
 };
 
 // The one section added whole since format_version 2 began.

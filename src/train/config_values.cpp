@@ -67,6 +67,7 @@ constexpr Range kRanges[] = {
     {"optim.latent_sh_lr_scale", 0, 1e6, false},
     {"optim.lr_decay_from_fraction", 0, 1, false},
     {"optim.lr_final_scale", 0, 1, true},
+    {"optim.exposure_lr", 0, kMaxRate, false},
     {"loss.l1", 0, kMaxWeight, false},
     {"loss.dssim", 0, kMaxWeight, false},
     {"loss.spectral", 0, kMaxWeight, false},
@@ -79,6 +80,7 @@ constexpr Range kRanges[] = {
     {"loss.view_fraction", 0, 1, true},
     {"loss.view_fraction_until_fraction", 0, 1, false},
     {"loss.view_fraction_from_pixels", 0, kMaxCount, false, true},
+    {"loss.exposure_prior", 0, kMaxWeight, false},
     {"wavelength_encoder.frequencies", 0, 24, false, true},  // 2^24 x a wavelength stays finite
     {"wavelength_encoder.hidden", 1, 4096, false, true},
     {"wavelength_encoder.layers", 1, 64, false, true},

@@ -36,6 +36,14 @@ DataConfig parse_data(const json& d, const std::string& source) {
   return c;  // ranges and the band range: validate_config (config_values.cpp)
 }
 
+ExposureMode parse_exposure_mode(const std::string& text, const std::string& source) {
+  if (text == "auto") return ExposureMode::Auto;
+  if (text == "on") return ExposureMode::On;
+  if (text == "off") return ExposureMode::Off;
+  throw core::Error(source,
+                    "key 'model.exposure_correction' is '" + text + "', expected auto, on or off");
+}
+
 ModelConfig parse_model(const json& m, const std::string& source) {
   ModelConfig c;
   c.sh_degree = read<int>(m, "model", "sh_degree", source);
@@ -48,6 +56,8 @@ ModelConfig parse_model(const json& m, const std::string& source) {
                                        : std::vector<float>{b.get<float>()};
   c.background_from_views = read<bool>(m, "model", "background_from_views", source);
   c.learn_background = read<bool>(m, "model", "learn_background", source);
+  c.exposure_correction =
+      parse_exposure_mode(read<std::string>(m, "model", "exposure_correction", source), source);
   return c;
 }
 
@@ -80,6 +90,7 @@ OptimConfig parse_optim(const json& o, const std::string& source) {
   c.latent_sh_lr_scale = read<double>(o, "optim", "latent_sh_lr_scale", source);
   c.lr_decay_from_fraction = read<double>(o, "optim", "lr_decay_from_fraction", source);
   c.lr_final_scale = read<double>(o, "optim", "lr_final_scale", source);
+  c.exposure_lr = read<double>(o, "optim", "exposure_lr", source);
   return c;
 }
 
@@ -97,6 +108,7 @@ LossConfig parse_loss(const json& l, const std::string& source) {
   c.view_fraction = read<double>(l, "loss", "view_fraction", source);
   c.view_fraction_until_fraction = read<double>(l, "loss", "view_fraction_until_fraction", source);
   c.view_fraction_from_pixels = read<int64_t>(l, "loss", "view_fraction_from_pixels", source);
+  c.exposure_prior = read<double>(l, "loss", "exposure_prior", source);
   return c;
 }
 

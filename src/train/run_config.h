@@ -29,6 +29,11 @@ struct DataConfig {
   io::LoadOptions load;        // downscale, rgb, band_min_nm, band_max_nm, bin, cache_mb
 };
 
+// Whether each training view learns a gain per band for its capture's light
+// (train/exposure_correction.h): Auto on band-per-view scenes (rig captures)
+// only.
+enum class ExposureMode { Auto, On, Off };
+
 struct ModelConfig {
   int sh_degree = 3;
   // The colour model (model/colour_model.h): 0 one SH set per band; K > 0 SH
@@ -44,6 +49,7 @@ struct ModelConfig {
   bool background_per_band = false;   // model.background was a list
   bool background_from_views = true;  // start from the training views' border colour
   bool learn_background = true;       // the background is a trained parameter
+  ExposureMode exposure_correction = ExposureMode::Auto;
 };
 
 struct OptimConfig {
@@ -62,6 +68,7 @@ struct OptimConfig {
   // lr_final_scale times its value at the last iteration; 1: constant.
   double lr_decay_from_fraction = 0.9;
   double lr_final_scale = 1;
+  double exposure_lr = 0;  // the views' log gains (falls with the rates above)
 };
 
 struct LossConfig {
@@ -82,6 +89,8 @@ struct LossConfig {
   // ... on views of at least this many pixels (crop_fraction); smaller
   // views stay whole.
   int64_t view_fraction_from_pixels = 0;
+  // Weight of the mean squared log gain of a step's view (exposure correction).
+  double exposure_prior = 0;
   SpectralLossOptions spectral_options;  // spectral_alpha, spectral_beta, spectral_temperature
   // loss.diffusion is DiffusionTermOptions::weight (RunConfig::diffusion).
 };

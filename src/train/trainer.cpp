@@ -79,6 +79,8 @@ constexpr uint64_t kCropStream = uint64_t(1) << 44;
 // The trained modules with one row per band (Adam groups "<module>/<name>").
 constexpr const char* kColourModule = "colour_model";
 constexpr const char* kBackgroundModule = "background";
+// ... and one row per view.
+constexpr const char* kExposureModule = "exposure";
 
 bool every(int64_t iteration, int64_t interval) {
   return interval > 0 && iteration % interval == 0;
@@ -165,6 +167,19 @@ void Trainer::build_modules() {
     add_module("camera_refinement", camera_refinement_.ptr(),
                config_.camera_refinement.rotation_lr);
   }
+  const ExposureMode exposure = config_.model.exposure_correction;
+  if (exposure == ExposureMode::On || (exposure == ExposureMode::Auto && scene_->band_per_view())) {
+    exposure_ = ExposureCorrection(trained_entries(*scene_));
+    if (!auxiliary_)
+      core::log_info(std::string("exposure correction: each training view learns a gain per band "
+                                 "for its capture's light (model.exposure_correction ") +
+                     (exposure == ExposureMode::On ? "on" : "auto: a band-per-view scene") +
+                     "); held-out views, renders and exports are not corrected");
+    add_module(kExposureModule, exposure_.ptr(), config_.optim.exposure_lr);
+    losses_.push_back({"exposure_prior", config_.loss.exposure_prior, [this](const LossInputs& in) {
+                         return in.view < 0 ? torch::zeros({}) : exposure_->prior(in.view);
+                       }});
+  }
   const DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());
   if (diffusion.enabled()) {
     // The denoiser sees every band of a view at once; a view that holds one
@@ -225,10 +240,11 @@ void Trainer::set_learning_rates(int64_t iteration) {
       late * o.sh_dc_lr * state_.gaussians.colour.sh_rate_scale(o.latent_sh_lr_scale);
   state_.adam.group("sh_dc").lr = sh_lr;
   state_.adam.group("sh_rest").lr = sh_lr / o.sh_rest_lr_divisor;
-  // The colour model's basis and mean and the learned background fall with
-  // them; the other modules (encoder, cameras, denoiser) keep their rates.
+  // The colour model's basis and mean, the learned background and the views'
+  // gains fall with them; the other modules (encoder, cameras, denoiser) keep
+  // their rates.
   for (const auto& m : state_.modules)
-    if (m.name == kColourModule || m.name == kBackgroundModule)
+    if (m.name == kColourModule || m.name == kBackgroundModule || m.name == kExposureModule)
       scale_module_rate(state_.adam, m, late);
   if (camera_refinement_)
     state_.adam.group("camera_refinement/translation").lr =
@@ -433,8 +449,11 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
                  : render_training_view(view, sink, rest_step, band_map(bands),
                                         crop ? &*crop : nullptr);
   }
-  // A view of a band-per-view scene supervises only the bands it holds.
-  const torch::Tensor rendered = pseudo ? out.image : scene_->view_slice(view, out.image);
+  // A view of a band-per-view scene supervises only the bands it holds, lit
+  // as its capture was (the exposure correction's gains).
+  torch::Tensor rendered = pseudo ? out.image : scene_->view_slice(view, out.image);
+  if (exposure_ && !pseudo)
+    rendered = exposure_->apply(view, rendered, bands.defined() ? bands : scene_->view_bands(view));
   LossValues loss;
   {
     core::StageScope stage("losses (other)");
@@ -462,14 +481,18 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   }
   {
     core::StageScope stage("adam");
-    // Parameters with one row per band learn on the bands measured.
+    // Parameters with one row per band learn on the bands measured, the
+    // views' gains on the view measured.
+    std::vector<model::Adam::RowSet> rows;
     if (bands.defined())
-      state_.adam.step({kBackgroundModule + std::string("/"), kColourModule + std::string("/")},
-                       bands);
-    else
-      state_.adam.step();
+      rows.push_back(
+          {{kBackgroundModule + std::string("/"), kColourModule + std::string("/")}, bands});
+    if (exposure_ && !pseudo)
+      rows.push_back({{kExposureModule + std::string("/")}, torch::tensor({int64_t(view)})});
+    state_.adam.step(rows);
     state_.adam.zero_grad();
     if (camera_refinement_) camera_refinement_->recentre();
+    if (exposure_) exposure_->recentre();
   }
 
   // A test record measures the Gaussians this step has optimised, before
@@ -859,6 +882,11 @@ void Trainer::write_outputs(double seconds, const json& test_at_end) {
     if (!denoiser_pairs_psnr_.is_null()) summary["denoiser_pairs_psnr"] = denoiser_pairs_psnr_;
     summary["distill_steps"] = diffusion_->options().distill_steps;
     summary["pseudo_views"] = pseudo_views_.size();
+  }
+  if (exposure_) {
+    const json gains = exposure_summary(*exposure_, *scene_);
+    core::log_info(describe_exposure(gains));
+    summary.update(gains);
   }
   summary.update(test_at_end.is_null() ? test_psnr() : test_at_end);
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());

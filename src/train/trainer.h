@@ -22,6 +22,7 @@
 #include "train/checkpoint.h"
 #include "train/denoiser_finetuning.h"
 #include "train/diffusion_term.h"
+#include "train/exposure_correction.h"
 #include "train/losses.h"
 #include "train/run_config.h"
 #include "train/run_folder.h"
@@ -175,6 +176,7 @@ class Trainer {
   double extent_ = 1;
   model::WavelengthEncoder encoder_{nullptr};
   CameraRefinement camera_refinement_{nullptr};     // camera_refinement.enabled
+  ExposureCorrection exposure_{nullptr};            // model.exposure_correction
   std::unique_ptr<DiffusionTerm> diffusion_;        // loss.diffusion > 0
   torch::Tensor wavelengths01_;                     // [N] the encoder's input
   std::unique_ptr<DenoiserFinetuning> finetuning_;  // made on its first step
