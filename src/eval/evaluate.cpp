@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
@@ -18,10 +19,15 @@ namespace {
 
 using json = nlohmann::json;
 
+// A spectral angle, or null where there is none (a one-band view).
+json angle_json(double sam_rad) {
+  return std::isnan(sam_rad) ? json() : json(sam_rad);
+}
+
 json metrics_json(const ImageMetrics& m, const std::vector<double>& wavelengths_nm) {
   return {{"psnr", m.psnr_db},
           {"ssim", m.ssim},
-          {"sam", m.sam_rad},
+          {"sam", angle_json(m.sam_rad)},
           {"rmse", m.rmse},
           {"per_band_psnr", {{"wavelengths_nm", wavelengths_nm}, {"psnr", m.band_psnr_db}}}};
 }
@@ -30,6 +36,27 @@ std::string fixed(double value, int decimals) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*f", decimals, value);
   return buf;
+}
+
+// The views (rows against the stored views) without a spectral angle: those
+// that hold one band, whose "spectrum" is one value.
+int views_without_angle(const EvalReport& report) {
+  int count = 0;
+  for (const ViewResult& r : report.per_view)
+    count += r.truth == "views" && std::isnan(r.metrics.sam_rad);
+  return count;
+}
+
+// Why SAM is "-" or null, or "" when every view has an angle.
+std::string angle_note(const EvalReport& report) {
+  const int without = views_without_angle(report);
+  if (without == 0) return "";
+  const int views = int(report.per_view.size() / (report.mean_clean ? 2 : 1));
+  if (without == views)
+    return "SAM -: every view holds one band, and one band has no spectral angle (it needs two "
+           "or more)";
+  return "SAM over the " + std::to_string(views - without) + " of " + std::to_string(views) +
+         " views that hold two or more bands; a one-band view has no spectral angle";
 }
 
 // Mean over views; the interior over the views that have one.
@@ -48,10 +75,11 @@ std::optional<ObjectMetrics> mean_object(const std::vector<ObjectMetrics>& views
 }
 
 json object_json(const ObjectMetrics& m) {
-  json j = {{"pixel_share", m.share}, {"psnr", m.object.psnr_db}, {"sam", m.object.sam_rad}};
+  json j = {
+      {"pixel_share", m.share}, {"psnr", m.object.psnr_db}, {"sam", angle_json(m.object.sam_rad)}};
   if (m.interior) {
     j["interior_psnr"] = m.interior->psnr_db;
-    j["interior_sam"] = m.interior->sam_rad;
+    j["interior_sam"] = angle_json(m.interior->sam_rad);
   }
   return j;
 }
@@ -92,14 +120,30 @@ ViewMetrics measure_view(const io::Scene& scene, int view, const torch::Tensor& 
   const torch::Tensor own_backdrop =
       backdrop.defined() ? scene.view_slice(view, backdrop) : backdrop;
   const std::vector<int>& bands = scene.views[size_t(view)].bands;
+  // One band has no spectrum, so no spectral angle (it would be 0 always).
+  const bool one_band = measured.size(2) < 2;
+  auto measure = [&](const torch::Tensor& truth) {
+    ImageMetrics image_metrics =
+        on_scene_bands(compute_metrics(measured, truth), bands, scene.bands());
+    if (one_band) image_metrics.sam_rad = std::nan("");
+    return image_metrics;
+  };
+  auto measure_region = [&](const torch::Tensor& truth) {
+    std::optional<ObjectMetrics> object = measure_object(measured, truth, own_backdrop);
+    if (object && one_band) {
+      object->object.sam_rad = std::nan("");
+      if (object->interior) object->interior->sam_rad = std::nan("");
+    }
+    return object;
+  };
   ViewMetrics m;
   const torch::Tensor stored = scene.image(view);
-  m.stored = on_scene_bands(compute_metrics(measured, stored), bands, scene.bands());
-  if (backdrop.defined()) m.stored_object = measure_object(measured, stored, own_backdrop);
+  m.stored = measure(stored);
+  if (backdrop.defined()) m.stored_object = measure_region(stored);
   const torch::Tensor clean = scene.clean_image(view);
   if (clean.defined()) {
-    m.clean = on_scene_bands(compute_metrics(measured, clean), bands, scene.bands());
-    if (backdrop.defined()) m.clean_object = measure_object(measured, clean, own_backdrop);
+    m.clean = measure(clean);
+    if (backdrop.defined()) m.clean_object = measure_region(clean);
   }
   return m;
 }
@@ -227,6 +271,7 @@ void write_metrics_json(const std::filesystem::path& path, const EvalReport& rep
                 {"ssim", "11x11 Gaussian window, sigma 1.5, valid windows"},
                 {"fps", "frames per second, render only"}};
   if (report.mean_clean) j["clean"] = metrics_json(*report.mean_clean, report.wavelengths_nm);
+  if (const std::string note = angle_note(report); !note.empty()) j["notes"]["sam"] = note;
   if (report.backdrop.defined()) {
     j["backdrop"] = {{"value", core::to_doubles(report.backdrop)},
                      {"tolerance", io::kBackdropTolerance}};
@@ -271,16 +316,18 @@ void write_per_view_csv(const std::filesystem::path& path, const EvalReport& rep
   if (aligned)
     csv << ",aligned_psnr_db,aligned_ssim,aligned_sam_rad,aligned_rmse,aligned_motion_px";
   csv << "\n";
+  // A one-band view's spectral angle is empty too.
+  auto angle = [](double sam_rad) { return std::isnan(sam_rad) ? "" : fixed(sam_rad, 8); };
   for (const ViewResult& r : report.per_view) {
     csv << r.view << "," << r.truth << "," << fixed(r.metrics.psnr_db, 6) << ","
-        << fixed(r.metrics.ssim, 8) << "," << fixed(r.metrics.sam_rad, 8) << ","
+        << fixed(r.metrics.ssim, 8) << "," << angle(r.metrics.sam_rad) << ","
         << fixed(r.metrics.rmse, 8);
     if (masked) {
       const std::optional<ObjectMetrics>& o = r.object;
       const RegionMetrics* in = o && o->interior ? &*o->interior : nullptr;
       csv << "," << (o ? fixed(o->share, 6) : "") << "," << (o ? fixed(o->object.psnr_db, 6) : "")
-          << "," << (o ? fixed(o->object.sam_rad, 8) : "") << ","
-          << (in ? fixed(in->psnr_db, 6) : "") << "," << (in ? fixed(in->sam_rad, 8) : "");
+          << "," << (o ? angle(o->object.sam_rad) : "") << "," << (in ? fixed(in->psnr_db, 6) : "")
+          << "," << (in ? angle(in->sam_rad) : "");
     }
     if (aligned) {
       if (const auto& a = r.aligned)
@@ -302,23 +349,26 @@ std::string format_report(const EvalReport& report) {
       << report.width << "x" << report.height << " px, " << report.wavelengths_nm.size()
       << " bands, " << report.gaussians << " Gaussians\n";
   out << "  truth    PSNR dB     SSIM  SAM rad     RMSE\n";
+  // A spectral angle as the table shows it: "-" where there is none.
+  auto angle = [](double sam_rad) { return std::isnan(sam_rad) ? "-" : fixed(sam_rad, 4); };
   auto row = [&](const char* name, const ImageMetrics& m) {
     char buf[128];
-    std::snprintf(buf, sizeof buf, "  %-7s %8.3f %8.4f %8.4f %8.5f\n", name, m.psnr_db, m.ssim,
-                  m.sam_rad, m.rmse);
+    std::snprintf(buf, sizeof buf, "  %-7s %8.3f %8.4f %8s %8.5f\n", name, m.psnr_db, m.ssim,
+                  angle(m.sam_rad).c_str(), m.rmse);
     out << buf;
   };
   // Under the row of their truth, indented.
   auto object_rows = [&](const ObjectMetrics& m) {
     char buf[160];
     std::snprintf(buf, sizeof buf,
-                  "   %-6s %8.3f %8s %8.4f %8s  (%.0f %% of the pixels: unlike the backdrop)\n",
-                  "object", m.object.psnr_db, "-", m.object.sam_rad, "-", 100 * m.share);
+                  "   %-6s %8.3f %8s %8s %8s  (%.0f %% of the pixels: unlike the backdrop)\n",
+                  "object", m.object.psnr_db, "-", angle(m.object.sam_rad).c_str(), "-",
+                  100 * m.share);
     out << buf;
     if (!m.interior) return;
     std::snprintf(buf, sizeof buf,
-                  "   %-6s %8.3f %8s %8.4f %8s  (the object less its 1-pixel outline)\n", "inside",
-                  m.interior->psnr_db, "-", m.interior->sam_rad, "-");
+                  "   %-6s %8.3f %8s %8s %8s  (the object less its 1-pixel outline)\n", "inside",
+                  m.interior->psnr_db, "-", angle(m.interior->sam_rad).c_str(), "-");
     out << buf;
   };
   row("views", report.mean);
@@ -335,6 +385,7 @@ std::string format_report(const EvalReport& report) {
   }
   if (report.mean_clean) row("clean", *report.mean_clean);
   if (report.mean_object_clean) object_rows(*report.mean_object_clean);
+  if (const std::string note = angle_note(report); !note.empty()) out << "  (" << note << ")\n";
   if (report.timing && report.timing->repeats > 0)
     out << "  render " << fixed(report.timing->fps(), 2) << " FPS ("
         << fixed(report.timing->median_ms, 1) << " ms per frame, median of "

@@ -314,10 +314,14 @@ std::optional<RegionMetrics> region_metrics(const torch::Tensor& pred, const tor
 
 RegionMetrics mean_region_metrics(const std::vector<RegionMetrics>& views) {
   RegionMetrics mean;
+  int angles = 0;
   for (const RegionMetrics& v : views) {
     mean.psnr_db += v.psnr_db / double(views.size());
-    mean.sam_rad += v.sam_rad / double(views.size());
+    if (std::isnan(v.sam_rad)) continue;  // a one-band view's: no angle
+    mean.sam_rad += v.sam_rad;
+    ++angles;
   }
+  mean.sam_rad = angles > 0 ? mean.sam_rad / angles : std::nan("");
   return mean;
 }
 

@@ -88,7 +88,8 @@ std::optional<RegionMetrics> region_metrics(const torch::Tensor& pred,   // [H, 
                                             const torch::Tensor& gt,     // [H, W, N]
                                             const torch::Tensor& mask);  // [H, W] bool
 
-// Mean over views, value by value.
+// Mean over views, value by value; a NaN spectral angle (a one-band view's)
+// is left out of its mean, which is NaN when no view has one.
 RegionMetrics mean_region_metrics(const std::vector<RegionMetrics>& views);
 
 }  // namespace ddhgs::eval

@@ -69,6 +69,13 @@ std::vector<Frame> orbit_frames(const io::Scene& scene, int count);
 //   LABEL.json                          per frame: mean index, and the mean absolute
 //                                       error against the truth's index (diff)
 // Ground truth is the clean view when the scene has one, else the stored view.
+// A view that holds some of the bands (a band-per-view scene) is compared on
+// them: its compare and diff pictures show the mean of its own bands, or of
+// those of --band/--bands it holds, through the colour map (LABEL: its bands,
+// band3 or band1-3, or the selection's label); a view holding none of the
+// selected bands gets none. Its index truth comes from the views at its pose (a capture's
+// band images through one lens); core::Error when they lack a band the
+// index weighs (a rig's band cameras each look from their own pose).
 // Returns the number of files written. The caller makes them appear together
 // (io::write_into_folder_atomically).
 int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
