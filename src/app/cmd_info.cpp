@@ -133,10 +133,8 @@ std::string spectra_line(const SpectraCheck& c) {
 
 std::string backdrop_line(const BorderCheck& b) {
   if (!b.scan) return "not checked (" + b.why_not + ")";
+  if (!b.scan->masked) return "none (" + b.scan->why_not + ")";
   const std::string share = std::to_string(int(std::lround(100 * b.scan->share))) + " %";
-  if (b.scan->share < io::kBackdropMinShare)
-    return "none (" + share + " of the view borders within " + nm(io::kBackdropTolerance) +
-           " of their median)";
   return "masked to " + io::describe_colour(b.scan->colour) + " on " + share +
          " of the view borders (the background starts from it; eval also measures the object "
          "alone)";
@@ -170,13 +168,15 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r, const B
   j["fov_deg"] = {r.fov_x_deg, r.fov_y_deg};
   j["train_nearest_view_deg"] = r.spacing.train_nearest_deg;
   j["test_nearest_train_view_deg"] = r.spacing.test_nearest_deg;
-  // The border's median colour and the share of the border on it; "masked"
-  // when eval measures the object alone (io/scene/backdrop.h).
+  // The border's median colour, the share of the border and of the views on
+  // it, its spread, the share of views whose middle it fills; "masked" when training's background
+  // starts from it and eval measures the object alone (io/scene/backdrop.h), else why not.
   if (border.scan) {
     const io::BorderScan& b = *border.scan;
-    j["border"] = {{"colour", core::to_doubles(b.colour)},
-                   {"share", b.share},
-                   {"masked", b.share >= io::kBackdropMinShare}};
+    j["border"] = {{"colour", core::to_doubles(b.colour)}, {"share", b.share},
+                   {"view_share", b.view_share},           {"spread", b.spread},
+                   {"filled_share", b.filled_share},       {"masked", b.masked}};
+    if (!b.masked) j["border"]["why_not"] = b.why_not;
   }
   // Share of the variance per principal component of the pixel spectra, and
   // the ranks that keep 99 % and 99.9 % of it.

@@ -125,9 +125,19 @@ void Trainer::load_scene() {
   check_scene_before_training(*scene_);
   background_ = background(config_.model, scene_->bands());
   if (config_.model.background_from_views) {
-    background_ = io::border_colour(*scene_, scene_->train);
-    core::log_info("background starts from the training views' border colour (" +
-                   io::describe_colour(background_) + ")");
+    // Only a masked capture's backdrop: a field's or a room's border is
+    // scenery, which the Gaussians draw.
+    const io::BorderScan border = io::scan_border(*scene_, scene_->train);
+    if (border.masked) {
+      background_ = border.colour;
+      core::log_info("background starts from the training views' backdrop (" +
+                     io::describe_colour(background_) + ")");
+    } else {
+      core::log_info(
+          "background starts from model.background: the views show no uniform "
+          "backdrop (" +
+          border.why_not + ")");
+    }
   }
   extent_ = scene_extent(*scene_, scene_->train);
   const LossConfig& loss = config_.loss;

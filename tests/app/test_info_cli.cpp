@@ -65,10 +65,11 @@ TEST(InfoCli, DescribesAHealthyScene) {
       << out;
   EXPECT_TRUE(contains(out, "6 views with clean ground truth")) << out;
   // View i is uniform at 10 i / 255: the median border value is 20 / 255, and
-  // views 1-3 (within 10 / 255 = 0.039 of it) are half the border.
+  // views 1-3 (within 10 / 255 = 0.039 of it) are half the border, but a
+  // masked capture's backdrop lies on most views, not on half of them.
   EXPECT_TRUE(contains(out,
-                       "backdrop    masked to 0.078 to 0.078 over 5 bands on 50 % of the "
-                       "view borders"))
+                       "backdrop    none (the borders of 50 % of the views lie within 0.04 of "
+                       "their median)"))
       << out;
   // Every pixel's spectrum is 10 i / 255 in all 5 bands: one direction, (1,
   // 1, 1, 1, 1), holds all the variance of the 6 x 48 pixels.
@@ -109,7 +110,9 @@ TEST(InfoCli, JsonAtDownscale) {
   EXPECT_EQ(j["points"], 0);
   EXPECT_EQ(j["clean_views"], 6);
   EXPECT_EQ(j["border"]["share"].get<double>(), 0.5);
-  EXPECT_TRUE(j["border"]["masked"].get<bool>());
+  EXPECT_EQ(j["border"]["view_share"].get<double>(), 0.5);
+  EXPECT_FALSE(j["border"]["masked"].get<bool>());
+  EXPECT_TRUE(contains(j["border"]["why_not"].get<std::string>(), "50 % of the views"));
   EXPECT_NEAR(j["border"]["colour"][0].get<double>(), 20.0 / 255, 1e-6);
   EXPECT_TRUE(j["errors"].empty());
   const auto& pca = j["spectral_pca"];

@@ -320,15 +320,26 @@ TEST(RigCli, NadirStripTrainsWithDefaultSettings) {
   ASSERT_EQ(transforms["test_filenames"].size(), 5u) << transforms.dump();  // one capture
   EXPECT_NE(transforms["test_filenames"][0].get<std::string>().find("IMG_0004"), std::string::npos);
   fs::copy(rig / "truth" / "clean", root / "scene" / "clean");
+  // The mat under the plant fills the frame: within the tolerance of the
+  // grey backdrop's colour on most of the border, but no backdrop. info,
+  // training and eval agree.
+  ASSERT_EQ(ddhgs("info " + (root / "scene").string(), &out), 0) << out;
+  EXPECT_NE(out.find("backdrop    none (the border's colour fills the middle of"),
+            std::string::npos)
+      << out;
   ASSERT_EQ(ddhgs("train " + (root / "scene").string() + " --out " + (root / "run").string() +
                       " --iterations 1500 --set output.test_every=0",
                   &out),
             0)
       << out;
   EXPECT_NE(out.find("a one-sided capture): no extra random points"), std::string::npos) << out;
+  EXPECT_NE(out.find("background starts from model.background"), std::string::npos) << out;
   const double psnr = read_json(root / "run" / "train_summary.json")["test_psnr_clean"];
   std::printf("nadir strip, held-out capture: %.2f dB against clean truth\n", psnr);
   EXPECT_GT(psnr, 29.0);
+  ASSERT_EQ(ddhgs("eval " + (root / "run").string() + " --fps-repeats 0", &out), 0) << out;
+  EXPECT_EQ(out.find("object"), std::string::npos) << out;
+  EXPECT_FALSE(read_json(root / "run" / "eval" / "metrics.json").contains("backdrop"));
 }
 
 // COLMAP poses the reference camera's images; every band camera follows by

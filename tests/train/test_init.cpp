@@ -8,6 +8,7 @@
 #include <cmath>
 #include <functional>
 
+#include "core/colour.h"
 #include "io/image/image.h"
 #include "io/scene/backdrop.h"
 #include "io/scene/scene.h"
@@ -175,6 +176,54 @@ TEST(Init, MaskedBackdropNeedsMostOfTheBorderOnIt) {
   EXPECT_FALSE(io::masked_backdrop(*scene, all, io::kBackdropTolerance, 0.89).has_value());
   // The tint (55 levels, 0.216) counts once the tolerance admits it: 948 of 960.
   EXPECT_TRUE(io::masked_backdrop(*scene, all, 0.22, 0.98).has_value());
+}
+
+// A masked capture's verdict: the white-backdrop scene passes every test.
+TEST(Init, AMaskedCapturePassesEveryTestOfTheBorder) {
+  auto scene = io::load_scene(write_scene("init_masked", 14.0));
+  const io::BorderScan scan = io::scan_border(*scene, scene->train);
+  EXPECT_TRUE(scan.masked) << scan.why_not;
+  EXPECT_EQ(scan.spread, 0);        // every border pixel on the backdrop is exactly white
+  EXPECT_EQ(scan.filled_share, 0);  // the object stands in every view's middle
+  EXPECT_NEAR(scan.view_share, 8.0 / 9.0, 1e-12);  // the tinted view is off it
+}
+
+// A textured surface whose mean is a backdrop's colour: half the border and
+// more within the tolerance of the median, on every view, but spread evenly
+// over it (reflectance 0.5 +- 0.06, independent per pixel) as no backdrop is.
+TEST(Init, ATexturedFieldIsNoBackdrop) {
+  auto texture = [](int view) {
+    torch::manual_seed(uint64_t(view) + 1);
+    const torch::Tensor grey = 0.5 + 0.12 * (torch::rand({kHeight, kWidth, 1}) - 0.5);
+    return core::to_u8(grey.repeat({1, 1, 3}));
+  };
+  auto scene = io::load_scene(write_scene("init_field", 14.0, texture));
+  const io::BorderScan scan = io::scan_border(*scene, scene->train);
+  EXPECT_GT(scan.share, 0.5);
+  EXPECT_GT(scan.view_share, 0.66);
+  EXPECT_GT(scan.spread, io::kBackdropMaxSpread);
+  EXPECT_FALSE(scan.masked);
+  EXPECT_NE(scan.why_not.find("a texture"), std::string::npos) << scan.why_not;
+  EXPECT_FALSE(io::masked_backdrop(*scene, scene->train).has_value());
+}
+
+// A uniform floor filling every frame, seen from above with noise: its border
+// is as constant as a backdrop's, but it fills the middle of the views too,
+// where a masked capture shows its object.
+TEST(Init, AFloorFillingTheFrameIsNoBackdrop) {
+  auto floor = [](int view) {
+    torch::manual_seed(uint64_t(view) + 1);
+    const torch::Tensor grey = 0.5 + 0.005 * torch::randn({kHeight, kWidth, 1});
+    return core::to_u8(grey.repeat({1, 1, 3}));
+  };
+  auto scene = io::load_scene(write_scene("init_floor", 14.0, floor));
+  const io::BorderScan scan = io::scan_border(*scene, scene->train);
+  EXPECT_GT(scan.share, 0.99);
+  EXPECT_LE(scan.spread, io::kBackdropMaxSpread);
+  EXPECT_EQ(scan.filled_share, 1.0);
+  EXPECT_FALSE(scan.masked);
+  EXPECT_NE(scan.why_not.find("fills the middle of 100 % of the views"), std::string::npos)
+      << scan.why_not;
 }
 
 TEST(Init, ANaturalBorderIsNoBackdrop) {

@@ -1,9 +1,11 @@
 #include "io/scene/backdrop.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "core/error.h"
+#include "core/log.h"
 
 namespace ddhgs::io {
 
@@ -24,11 +26,29 @@ torch::Tensor image_border(const torch::Tensor& image, int border_px) {
       .to(torch::kFloat32);
 }
 
-// Border pixels of up to max_views of `views` ([P_i, n_i] each) and the
-// scene bands each holds. In a band-per-view scene the views are sampled
-// band by band, so that every band the views hold is represented.
+// Pixels of the middle third of one image (rows and columns), on a grid of
+// at most about kCentrePixels: [Q, n] float32.
+constexpr int64_t kCentrePixels = 2048;
+torch::Tensor image_centre(const torch::Tensor& image) {
+  const int64_t h = image.size(0), w = image.size(1), n = image.size(2);
+  const torch::Tensor middle = image.slice(0, h / 3, std::max(h / 3 + 1, 2 * h / 3))
+                                   .slice(1, w / 3, std::max(w / 3 + 1, 2 * w / 3));
+  const auto step = int64_t(
+      std::ceil(std::sqrt(double(middle.size(0) * middle.size(1)) / double(kCentrePixels))));
+  return middle.slice(0, 0, middle.size(0), step)
+      .slice(1, 0, middle.size(1), step)
+      .reshape({-1, n})
+      .to(torch::kFloat32)
+      .clone();
+}
+
+// Border pixels of up to max_views of `views` ([P_i, n_i] each), a sample
+// of their middles ([Q_i, n_i]) and the scene bands each holds. In a
+// band-per-view scene the views are sampled band by band, so that every
+// band the views hold is represented.
 struct Borders {
   std::vector<torch::Tensor> pixels;
+  std::vector<torch::Tensor> centres;
   std::vector<torch::Tensor> bands;  // int64 scene band indices per entry
 };
 
@@ -57,7 +77,9 @@ Borders border_pixels(const Scene& scene, const std::vector<int>& views, int max
   }
   Borders out;
   for (int v : chosen) {
-    out.pixels.push_back(image_border(scene.image(v), border_px));
+    const torch::Tensor image = scene.image(v);
+    out.pixels.push_back(image_border(image, border_px));
+    out.centres.push_back(image_centre(image));
     const torch::Tensor b = scene.view_bands(v);
     out.bands.push_back(b.defined() ? b : torch::arange(scene.bands(), torch::kInt64));
   }
@@ -80,6 +102,35 @@ torch::Tensor median_colour(const Scene& scene, const Borders& borders) {
   return colour;
 }
 
+// 1.4826 x the median absolute deviation from the colour per band (a
+// standard deviation for Gaussian noise), and the median of it over the
+// bands, so that a few noisy bands at a sensor's edges do not decide.
+// deviations: |pixel - colour| of the border pixels on the colour, per view.
+double border_spread(const Scene& scene, const Borders& borders,
+                     const std::vector<torch::Tensor>& deviations) {
+  if (deviations.empty()) return 0;
+  if (!scene.band_per_view())
+    return 1.4826 * std::get<0>(torch::cat(deviations, 0).median(0)).median().item<double>();
+  std::vector<torch::Tensor> per_band;
+  for (int64_t band = 0; band < scene.bands(); ++band) {
+    std::vector<torch::Tensor> columns;
+    for (size_t i = 0; i < deviations.size(); ++i) {
+      const torch::Tensor at = (borders.bands[i] == band).nonzero();
+      if (at.numel() > 0) columns.push_back(deviations[i].select(1, at[0][0].item<int64_t>()));
+    }
+    if (!columns.empty()) per_band.push_back(std::get<0>(torch::cat(columns).median(0)));
+  }
+  return 1.4826 * torch::stack(per_band).median().item<double>();
+}
+
+std::string percent(double share) {
+  return std::to_string(int(std::lround(100 * share))) + " %";
+}
+
+double round3(double value) {
+  return std::round(value * 1000) / 1000;
+}
+
 }  // namespace
 
 torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views, int max_views,
@@ -87,24 +138,54 @@ torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views, i
   return median_colour(scene, border_pixels(scene, views, max_views, border_px));
 }
 
-BorderScan scan_border(const Scene& scene, const std::vector<int>& views, double tolerance) {
+BorderScan scan_border(const Scene& scene, const std::vector<int>& views, double tolerance,
+                       double min_share) {
   const Borders borders = border_pixels(scene, views, kBorderViews, kBorderPx);
   BorderScan scan;
   scan.colour = median_colour(scene, borders);
   double near = 0, total = 0;
+  int views_on = 0, views_filled = 0;
+  std::vector<torch::Tensor>
+      on_deviations;  // per view: [P_i', n_i], its border pixels on the colour
   for (size_t i = 0; i < borders.pixels.size(); ++i) {
     const torch::Tensor own = scan.colour.index_select(0, borders.bands[i]);
-    near += ((borders.pixels[i] - own).abs().amax(1) <= tolerance).sum().item<double>();
-    total += double(borders.pixels[i].size(0));
+    const torch::Tensor deviation = (borders.pixels[i] - own).abs();
+    const torch::Tensor on = deviation.amax(1) <= tolerance;
+    on_deviations.push_back(deviation.index({on}));
+    const double count = on.sum().item<double>(), pixels = double(on.size(0));
+    views_on += pixels > 0 && count >= min_share * pixels;
+    near += count;
+    total += pixels;
+    const torch::Tensor centre = borders.centres[i];
+    const double filled = ((centre - own).abs().amax(1) <= tolerance).sum().item<double>();
+    views_filled += filled >= kBackdropFilledCentre * double(centre.size(0));
   }
+  const double sampled = double(borders.pixels.size());
   scan.share = total > 0 ? near / total : 0;
+  scan.view_share = sampled > 0 ? views_on / sampled : 0;
+  scan.filled_share = sampled > 0 ? views_filled / sampled : 0;
+  scan.spread = border_spread(scene, borders, on_deviations);
+  const std::string within = " within " + core::format_g(tolerance) + " of their median";
+  if (scan.share < min_share)
+    scan.why_not = percent(scan.share) + " of the view borders" + within;
+  else if (scan.view_share < kBackdropMinViewShare)
+    scan.why_not = "the borders of " + percent(scan.view_share) + " of the views lie" + within;
+  else if (scan.spread > kBackdropMaxSpread)
+    scan.why_not = "the border varies by " + core::format_g(round3(scan.spread)) +
+                   " around its median, a texture; a backdrop varies by at most " +
+                   core::format_g(kBackdropMaxSpread);
+  else if (scan.filled_share > kBackdropMaxFilledShare)
+    scan.why_not = "the border's colour fills the middle of " + percent(scan.filled_share) +
+                   " of the views too: a surface across the frame (a field, a floor), not a "
+                   "backdrop behind an object";
+  scan.masked = scan.why_not.empty();
   return scan;
 }
 
 std::optional<torch::Tensor> masked_backdrop(const Scene& scene, const std::vector<int>& views,
                                              double tolerance, double min_share) {
-  BorderScan scan = scan_border(scene, views, tolerance);
-  if (scan.share < min_share) return std::nullopt;
+  BorderScan scan = scan_border(scene, views, tolerance, min_share);
+  if (!scan.masked) return std::nullopt;
   return scan.colour;
 }
 

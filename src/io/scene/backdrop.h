@@ -32,22 +32,49 @@ torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views,
 // stays within 0.02; its darkest leaves and its pot are 0.5 away and more.
 constexpr double kBackdropTolerance = 0.04;
 
-// The border colour (as above, with the default counts) and the share of the
-// same border pixels that lie within tolerance of it in every band.
-struct BorderScan {
-  torch::Tensor colour;  // [N]
-  double share = 0;      // 0-1
-};
-BorderScan scan_border(const Scene& scene, const std::vector<int>& views,
-                       double tolerance = kBackdropTolerance);
-
 // A masked capture's backdrop needs at least this share of the border on it
 // (a natural scene's border varies). Basil: 79 % (the rest is the black
 // turntable in some views).
 constexpr double kBackdropMinShare = 0.5;
+// ... and on most views: at least this share of the views sampled must each
+// have min_share of their own border on it (views masked to one backdrop
+// agree; a few where the object fills the frame's edge are allowed).
+constexpr double kBackdropMinViewShare = 2.0 / 3.0;
+// ... and a near-constant colour: the robust spread of the border pixels on
+// it (1.4826 x their median absolute deviation from the colour, per band;
+// the median over the bands) at most this (reflectance). Noise gathers near
+// the colour (the demo scene's: 0.009); a texture spreads evenly over the
+// tolerance (0.03 for an even spread over +-0.04).
+constexpr double kBackdropMaxSpread = 0.02;
+// ... and an object in front of it: a view's middle third counts as filled
+// when this share of it is on the colour, and at most kBackdropMaxFilledShare
+// of the views may be filled. A field or a floor seen from above fills the
+// middle as it fills the border (the synthetic nadir strip: 5 of 8 views,
+// its mat within the tolerance of the grey backdrop's colour); an object
+// on a backdrop stands in the middle (demo: none of 16 views).
+constexpr double kBackdropFilledCentre = 0.9;
+constexpr double kBackdropMaxFilledShare = 1.0 / 3.0;
 
-// The views' backdrop when they are masked to a uniform one: the border
-// colour if at least min_share of the border lies on it; otherwise none.
+// What the views' borders show: the border colour (as border_colour, with
+// the default counts), the share of the same border pixels within tolerance
+// of it in every band, the share of the views with min_share of their own
+// border on it, the spread of the border pixels on it, the share of the
+// views whose middle it fills, and the verdict. The one test of a masked
+// capture: `ddhgs info`, training's background and eval's object all ask it.
+struct BorderScan {
+  torch::Tensor colour;     // [N]
+  double share = 0;         // 0-1, of the border pixels
+  double view_share = 0;    // 0-1, of the views sampled
+  double spread = 0;        // reflectance
+  double filled_share = 0;  // 0-1, of the views sampled
+  bool masked = false;      // every test passes
+  std::string why_not;      // the first test that failed, as text; "" when masked
+};
+BorderScan scan_border(const Scene& scene, const std::vector<int>& views,
+                       double tolerance = kBackdropTolerance, double min_share = kBackdropMinShare);
+
+// The views' backdrop when they are masked to a uniform one (scan_border's
+// verdict): the border colour; otherwise none.
 std::optional<torch::Tensor> masked_backdrop(const Scene& scene, const std::vector<int>& views,
                                              double tolerance = kBackdropTolerance,
                                              double min_share = kBackdropMinShare);
