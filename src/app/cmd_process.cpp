@@ -1,5 +1,6 @@
 // `ddhgs process CUBES_DIR --out SCENE`: raw hyperspectral captures -> a
-// trainable scene (pseudo-RGB, COLMAP poses and sparse points with spectra).
+// trainable scene (reflectance through white and dark references, pseudo-RGB,
+// COLMAP poses and sparse points with spectra).
 #include <array>
 #include <memory>
 #include <string>
@@ -19,6 +20,9 @@ namespace {
 
 struct ProcessArgs {
   std::string cubes_dir, out, pseudo_rgb = "cie", wl_range, poses;
+  // raw counts to reflectance
+  std::string white, dark, white_reflectance = "1";
+  double saturation = 0;
   process::ColmapOptions colmap;
   bool skip_colmap = false, force = false;
   // --rig: multispectral rig captures
@@ -68,8 +72,23 @@ Action setup(CLI::App& parent) {
       "Pose a folder of hyperspectral cubes (or multispectral rig captures, --rig) with COLMAP "
       "and write a trainable scene");
   cmd->add_option("CUBES_DIR", args->cubes_dir,
-                  "Folder of cubes (.npy .pt ENVI .hdr .tif), or of rig captures with --rig")
+                  "Folder of cubes (.npy .pt ENVI .hdr .tif), of Specim IQ capture folders (each "
+                  "with capture/: the raw cube, WHITEREF_* and DARKREF_*, used to make "
+                  "reflectance), or of rig captures with --rig")
       ->required();
+  cmd->add_option("--white", args->white,
+                  "White reference (a cube file of a few lines or frames, averaged over its rows "
+                  "into one value per column and band): the cubes are raw counts, made "
+                  "reflectance = (raw - dark) / (white - dark) x its reflectance");
+  cmd->add_option("--dark", args->dark, "Dark reference for --white (same form)");
+  cmd->add_option("--white-reflectance", args->white_reflectance,
+                  "The white reference's reflectance: a number, or a file of one value per band "
+                  "or of wavelength_nm,reflectance lines (interpolated at the bands)")
+      ->capture_default_str();
+  cmd->add_option("--saturation", args->saturation,
+                  "Raw count at which the sensor saturates (default: the sample type's top, e.g. "
+                  "65535; a 12-bit sensor stored in 16 bits: 4095)")
+      ->check(within(1, 1e12));
   cmd->add_flag("--rig", args->rig,
                 "CUBES_DIR holds multispectral rig captures (one raw TIFF per band camera, "
                 "MicaSense layout): write a band-per-view scene of their reflectance");
@@ -121,6 +140,15 @@ Action setup(CLI::App& parent) {
             {"--panel-region", !args->panel_regions.empty()},
             {"--reference-camera", args->reference_option->count() > 0}})
         core::require(!given, std::string(flag) + ": only used with --rig");
+    if (args->rig)
+      for (const auto& [flag, given] :
+           {std::pair<const char*, bool>{"--white", !args->white.empty()},
+            {"--dark", !args->dark.empty()},
+            {"--white-reflectance", args->white_reflectance != "1"},
+            {"--saturation", args->saturation > 0}})
+        core::require(!given, std::string(flag) +
+                                  ": for hyperspectral cubes; a rig's captures become reflectance "
+                                  "through --panel or the DLS");
     if (args->rig) {
       process::RigProcessOptions options;
       options.captures_dir = args->cubes_dir;
@@ -154,6 +182,10 @@ Action setup(CLI::App& parent) {
     options.colmap.threads = core::thread_count();
     options.poses = args->poses;
     options.force = args->force;
+    options.reflectance.white = args->white;
+    options.reflectance.dark = args->dark;
+    options.reflectance.white_reflectance = args->white_reflectance;
+    if (args->saturation > 0) options.reflectance.saturation = args->saturation;
     process::ProcessResult result = process::process_cubes(options);
     core::log_info("process: " + std::to_string(result.registered) + " of " +
                    std::to_string(result.views) + " views posed, " + std::to_string(result.points) +

@@ -39,6 +39,53 @@ bool same_grid(const std::vector<double>& a, const std::vector<double>& b) {
   return true;
 }
 
+// The ENVI headers of a Specim IQ capture's capture/ folder: the raw cube
+// and the one header whose name starts with each reference's prefix.
+struct SpecimCapture {
+  fs::path cube, white, dark;
+};
+SpecimCapture specim_capture(const fs::path& folder) {
+  SpecimCapture c;
+  std::vector<fs::path> headers;
+  for (const auto& entry : fs::directory_iterator(folder))
+    if (entry.is_regular_file() && lower(entry.path().extension().string()) == ".hdr")
+      headers.push_back(entry.path());
+  std::sort(headers.begin(), headers.end());
+  auto take = [&](fs::path* slot, const std::string& what, const fs::path& header) {
+    core::require(slot->empty(), folder,
+                  "holds two " + what + " (" + slot->filename().string() + ", " +
+                      header.filename().string() + "); a Specim IQ capture has one");
+    *slot = header;
+  };
+  for (const fs::path& header : headers) {
+    const std::string name = header.filename().string();
+    if (name.rfind("WHITEREF_", 0) == 0)
+      take(&c.white, "white references", header);
+    else if (name.rfind("DARKREF_", 0) == 0)
+      take(&c.dark, "dark references", header);
+    else
+      take(&c.cube, "raw cubes", header);
+  }
+  core::require(!c.cube.empty() && !c.white.empty() && !c.dark.empty(), folder,
+                "a Specim IQ capture folder needs the raw cube's .hdr, WHITEREF_*.hdr and "
+                "DARKREF_*.hdr");
+  return c;
+}
+
+// Specim IQ captures in dir (dir itself, or its sub-folders in name order,
+// that hold capture/); none when there are none.
+std::vector<SpecimCapture> specim_captures(const fs::path& dir) {
+  if (fs::is_directory(dir / "capture")) return {specim_capture(dir / "capture")};
+  std::vector<fs::path> folders;
+  for (const auto& entry : fs::directory_iterator(dir))
+    if (entry.is_directory() && fs::is_directory(entry.path() / "capture"))
+      folders.push_back(entry.path() / "capture");
+  std::sort(folders.begin(), folders.end());
+  std::vector<SpecimCapture> out;
+  for (const fs::path& folder : folders) out.push_back(specim_capture(folder));
+  return out;
+}
+
 }  // namespace
 
 WavelengthRange parse_wavelength_range(const std::string& text) {
@@ -65,9 +112,16 @@ CubeSet scan_cubes(const fs::path& dir, const std::optional<WavelengthRange>& ra
   set.dir = dir;
   for (const auto& entry : fs::directory_iterator(dir))
     if (entry.is_regular_file() && is_cube_file(entry.path())) set.files.push_back(entry.path());
-  core::require(!set.files.empty(), dir,
-                "holds no cube files (expected .npy, .pt, ENVI .hdr, .tif or .tiff)");
   std::sort(set.files.begin(), set.files.end());
+  if (set.files.empty())
+    for (const SpecimCapture& c : specim_captures(dir)) {
+      set.files.push_back(c.cube);
+      set.white_refs.push_back(c.white);
+      set.dark_refs.push_back(c.dark);
+    }
+  core::require(!set.files.empty(), dir,
+                "holds no cube files (expected .npy, .pt, ENVI .hdr, .tif or .tiff, or Specim "
+                "IQ capture folders)");
 
   std::map<std::string, fs::path> by_stem;
   std::vector<double> named_nm;

@@ -15,6 +15,9 @@ struct CubeSet {
   std::vector<std::string> names;            // file stems, unique
   int64_t height = 0, width = 0, bands = 0;  // pixels, pixels, bands
   std::vector<double> wavelengths_nm;        // one per band
+  // A Specim IQ layout: each cube's white and dark reference (its capture
+  // folder's WHITEREF_* and DARKREF_*); empty for a folder of cubes.
+  std::vector<std::filesystem::path> white_refs, dark_refs;
 };
 
 // First and last band centres (nm) of an evenly spaced grid.
@@ -25,7 +28,10 @@ struct WavelengthRange {
 WavelengthRange parse_wavelength_range(const std::string& text);
 
 // Cube files of dir (.npy .pt .hdr .tif .tiff; an ENVI pair counts once, by
-// its .hdr), headers only. range: the grid for cubes whose files name no
+// its .hdr), headers only. A folder with no cube files may hold Specim IQ
+// captures instead (it or its sub-folders each hold capture/ with the raw
+// ENVI cube, WHITEREF_*.hdr and DARKREF_*.hdr): their raw cubes, in folder
+// order, with their references. range: the grid for cubes whose files name no
 // wavelengths (.npy, .pt); files that name them must agree. core::Error
 // naming the file or folder: no cubes, two cubes with one stem, unreadable
 // header, band count or size differing from the first cube, no wavelengths.

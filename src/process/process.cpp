@@ -91,15 +91,26 @@ ProcessResult process_cubes(const ProcessOptions& options) {
   // named as such, not as a problem of the cubes found later.
   ColmapModel given_poses;
   if (!run_sfm) given_poses = read_given_poses(options.poses);
-  CubeSet cubes = scan_cubes(options.cubes_dir, options.wavelengths);
-  core::log_info("process: " + std::to_string(cubes.files.size()) + " cubes of " +
-                 std::to_string(cubes.width) + "x" + std::to_string(cubes.height) + " px, " +
-                 std::to_string(cubes.bands) + " bands");
+  const CubeSet raw = scan_cubes(options.cubes_dir, options.wavelengths);
+  core::log_info("process: " + std::to_string(raw.files.size()) + " cubes of " +
+                 std::to_string(raw.width) + "x" + std::to_string(raw.height) + " px, " +
+                 std::to_string(raw.bands) + " bands" +
+                 (raw.white_refs.empty() ? "" : " (Specim IQ captures with their references)"));
+  // The references are checked before anything is written.
+  const bool calibrate = calibrates(raw, options.reflectance);
+  std::optional<Calibration> calibration;
+  if (calibrate) calibration = plan_calibration(raw, options.reflectance);
 
   const fs::path failed_log = colmap_log_beside(out);
   ProcessResult result;
-  result.views = int(cubes.files.size());
+  result.views = int(raw.files.size());
   write_folder_atomically(request, [&](const fs::path& tmp) {
+    nlohmann::json summary = {{"generator", "ddhgs process"},
+                              {"cubes_dir", fs::absolute(options.cubes_dir).string()}};
+    // The scene holds reflectance: the pseudo-RGB images, the poses' cubes
+    // and the points' spectra all come from it.
+    const CubeSet cubes =
+        calibrate ? write_reflectance_cubes(raw, *calibration, tmp / "reflectance", summary) : raw;
     Stretch stretch = write_pseudo_rgb_images(cubes, options.pseudo_rgb, tmp / "images");
     ColmapModel model;
     if (run_sfm) {
@@ -121,7 +132,9 @@ ProcessResult process_cubes(const ProcessOptions& options) {
                       " views posed; at least 3 are needed to train");
 
     std::vector<std::string> cube_paths;
-    for (const auto& file : cubes.files) cube_paths.push_back(relative_to(file, out));
+    for (size_t c = 0; c < cubes.files.size(); ++c)
+      cube_paths.push_back(calibrate ? "reflectance/" + cubes.files[c].filename().string()
+                                     : relative_to(cubes.files[c], out));
     TransformsFile transforms = transforms_from_colmap(model, cubes, cube_paths);
     PointCloud cloud = points_of(model, cubes);
     if (cloud.xyz.defined()) {
@@ -132,15 +145,13 @@ ProcessResult process_cubes(const ProcessOptions& options) {
     write_transforms(tmp / "transforms.json", transforms);
     write_colmap_binary(tmp / "sparse" / "0", model);
 
-    nlohmann::json summary = {{"generator", "ddhgs process"},
-                              {"cubes_dir", fs::absolute(options.cubes_dir).string()},
-                              {"views", result.views},
-                              {"registered", result.registered},
-                              {"unregistered", result.unregistered},
-                              {"points", result.points},
-                              {"pseudo_rgb", options.pseudo_rgb_spec},
-                              {"stretch_linear", {stretch.low, stretch.high}},
-                              {"poses", run_sfm ? "colmap" : fs::absolute(options.poses).string()}};
+    summary["views"] = result.views;
+    summary["registered"] = result.registered;
+    summary["unregistered"] = result.unregistered;
+    summary["points"] = result.points;
+    summary["pseudo_rgb"] = options.pseudo_rgb_spec;
+    summary["stretch_linear"] = {stretch.low, stretch.high};
+    summary["poses"] = run_sfm ? "colmap" : fs::absolute(options.poses).string();
     if (run_sfm) {
       summary["matcher"] = options.colmap.matcher;
       summary["camera_model"] = options.colmap.camera_model;

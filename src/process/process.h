@@ -1,5 +1,6 @@
 // Structure from motion for hyperspectral captures (`ddhgs process`): a folder
-// of cubes -> pseudo-RGB PNGs -> COLMAP (feature extraction, matching,
+// of cubes (raw counts first become reflectance through white and dark
+// references, process/reflectance.h) -> pseudo-RGB PNGs -> COLMAP (feature extraction, matching,
 // mapping; CPU SIFT, run as subprocesses) -> a scene folder the trainer reads:
 // transforms.json (nerfstudio axes, wavelengths, cube paths), the pseudo-RGB
 // images, points.ply with per-band mean spectra of the sparse points, the
@@ -13,6 +14,7 @@
 #include "core/colour.h"
 #include "process/colmap_runner.h"
 #include "process/cube_set.h"
+#include "process/reflectance.h"
 
 namespace ddhgs::process {
 
@@ -21,6 +23,9 @@ struct ProcessOptions {
   core::PseudoRgbOptions pseudo_rgb;
   std::string pseudo_rgb_spec = "cie";
   std::optional<WavelengthRange> wavelengths;  // for cubes that name none
+  // Raw counts to reflectance (process/reflectance.h) before anything else:
+  // the scene holds the reflectance cubes (reflectance/<name>.npy).
+  ReflectanceOptions reflectance;
   ColmapOptions colmap;
   std::filesystem::path poses;  // --skip-colmap: COLMAP model folder or transforms.json
   bool force = false;

@@ -225,6 +225,12 @@ TEST(ProcessCli, BadInputsGiveOneLineAndNoOutput) {
   EXPECT_NE(out.find("--skip-colmap: expected --poses"), std::string::npos) << out;
 
   out = ddhgs("process " + (dir / "empty").string() + " --out " + (dir / "scene").string() +
+                  " --rig --white w.hdr --dark d.hdr",
+              &rc);
+  EXPECT_EQ(rc, 1);  // a rig's reflectance comes from its panel or DLS
+  EXPECT_NE(out.find("--white: for hyperspectral cubes"), std::string::npos) << out;
+
+  out = ddhgs("process " + (dir / "empty").string() + " --out " + (dir / "scene").string() +
                   " --colmap " + (dir / "nothing").string(),
               &rc);
   EXPECT_EQ(rc, 1);

@@ -228,5 +228,61 @@ TEST(SfmProcess, SkipColmapTakesPosesFromAModelOrTransformsJson) {
   EXPECT_FALSE(fs::exists(o.out));
 }
 
+// Specim IQ's layout: a folder per capture holding capture/ with the raw
+// cube (counts) and its WHITEREF_* and DARKREF_* references. process finds
+// it, takes each capture's own references, and the scene holds reflectance.
+TEST(SfmProcess, SpecimIqCapturesBecomeReflectance) {
+  Fixture f = make_fixture("sfm_process_specim", 4);
+  const fs::path specim = f.root / "specim";
+  const std::vector<double> wavelengths = {450, 550, 650};
+  auto write_counts = [&](const fs::path& hdr, const torch::Tensor& counts) {
+    write_envi(hdr, counts.round().to(torch::kInt32).to(torch::kInt16).contiguous(), wavelengths,
+               EnviInterleave::BIL, SampleType::U16);
+  };
+  for (int v = 0; v < 4; ++v) {
+    const std::string id = "v" + std::to_string(v);
+    const fs::path capture = specim / id / "capture";
+    fs::create_directories(capture);
+    // Each capture its own dark (100 + 10 v) and white (dark + 1000) lines.
+    const double dark = 100 + 10 * v;
+    const torch::Tensor truth = cube_to_float(read_cube(f.cubes / (id + ".npy")));  // [6, 8, 3]
+    torch::Tensor raw = dark + 1000 * truth.to(torch::kFloat64);
+    if (v == 2) raw[0][0][0] = 65535;
+    write_counts(capture / (id + ".hdr"), raw);
+    write_counts(capture / ("WHITEREF_" + id + ".hdr"), torch::full({3, 8, 3}, dark + 1000));
+    write_counts(capture / ("DARKREF_" + id + ".hdr"), torch::full({2, 8, 3}, dark));
+  }
+  ProcessOptions o = options_for(f, f.root / "unused");
+  o.cubes_dir = specim;
+  o.wavelengths.reset();
+  o.poses = f.model;
+  EXPECT_EQ(process_cubes(o).registered, 4);
+
+  const auto scene = load_scene(f.out);
+  ASSERT_EQ(scene->views.size(), 4u);
+  for (size_t v = 0; v < 4; ++v) {
+    EXPECT_TRUE(fs::equivalent(scene->views[v].data_path,
+                               f.out / "reflectance" / ("v" + std::to_string(v) + ".npy")));
+    torch::Tensor want = cube_to_float(read_cube(f.cubes / ("v" + std::to_string(v) + ".npy")));
+    torch::Tensor got = scene->image(int(v));
+    if (v == 2) got[0][0][0] = want[0][0][0];                       // the saturated sample
+    EXPECT_LT((got - want).abs().max().item<double>(), 6e-4) << v;  // counts rounded
+  }
+  const auto summary = nlohmann::json::parse(read_file(f.out / "process.json"));
+  const auto& r = summary["reflectance"];
+  EXPECT_EQ(r["saturated_samples"], 1) << r.dump(2);
+  EXPECT_EQ(r["dead_reference_pixels"], 0) << r.dump(2);
+  EXPECT_EQ(r["saturation_count"], 65535.0) << r.dump(2);
+  EXPECT_EQ(r["white"], "each capture's WHITEREF_*") << r.dump(2);
+  EXPECT_EQ(r["cubes"][2]["saturated"], 1) << r.dump(2);
+
+  // A capture folder without its dark reference is named.
+  fs::remove(specim / "v3" / "capture" / "DARKREF_v3.hdr");
+  o.out = f.root / "scene2";
+  const std::string e = error_of([&] { process_cubes(o); });
+  EXPECT_TRUE(contains(e, "needs the raw cube's .hdr, WHITEREF_*.hdr and DARKREF_*.hdr")) << e;
+  EXPECT_FALSE(fs::exists(o.out));
+}
+
 }  // namespace
 }  // namespace ddhgs::process
