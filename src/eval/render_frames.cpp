@@ -53,7 +53,8 @@ std::vector<int> views_at_pose(const io::Scene& scene, int v) {
   return out;
 }
 
-// A truth of view v: the clean view when the scene has one, else the stored one.
+// A truth of view v: the clean view when the scene has one, else the stored
+// one.
 torch::Tensor truth_of(const io::Scene& scene, int v) {
   return scene.has_clean() ? scene.clean_image(v) : scene.image(v);
 }
@@ -66,13 +67,12 @@ std::vector<int> weighed_bands(const torch::Tensor& row) {  // [N]
   return out;
 }
 
-// The truth an index of view v is computed from, [H, W, N]: the view itself
-// when it holds every band; in a band-per-view scene, the bands of the views
-// at its pose (zero where none holds a band, which the index does not weigh).
-// core::Error when those views lack a band the index weighs.
-torch::Tensor index_truth(const io::Scene& scene, int v, const VegetationIndex& index,
-                          const torch::Tensor& map) {  // [2, N]
-  if (scene.views[size_t(v)].bands.empty()) return truth_of(scene, v);
+// The views an index truth of view v is computed from: v when it holds
+// every band; in a band-per-view scene, the views at its pose. core::Error
+// when those views lack a band the index weighs.
+std::vector<int> index_views(const io::Scene& scene, int v, const VegetationIndex& index,
+                             const torch::Tensor& map) {  // [2, N]
+  if (scene.views[size_t(v)].bands.empty()) return {v};
   const std::vector<int> group = views_at_pose(scene, v);
   std::vector<bool> held(size_t(scene.bands()), false);
   for (int u : group) {
@@ -85,15 +85,25 @@ torch::Tensor index_truth(const io::Scene& scene, int v, const VegetationIndex& 
     const BroadBand& broad = row == 0 ? index.a : index.b;
     for (int b : weighed_bands(map[row]))
       if (!held[size_t(b)])
-        throw core::Error(
-            "--index " + index.name + " --diff",
-            "no view at the pose of " + scene.views[size_t(v)].name + " holds the " + broad.name +
-                " band (" + core::format_g(scene.wavelengths_nm[size_t(b)]) +
-                " nm), so no pixel has a true " + index.name +
-                ": this band-per-view scene's views hold one or a few bands, and a rig's band "
-                "cameras each look from their own pose (render the index without --diff; "
-                "render --diff and eval compare the bands one by one)");
+        throw core::Error("--index " + index.name + " --diff",
+                          "no view at the pose of " + scene.views[size_t(v)].name + " holds the " +
+                              broad.name + " band (" +
+                              core::format_g(scene.wavelengths_nm[size_t(b)]) +
+                              " nm), so no pixel has a true " + index.name +
+                              ": this band-per-view scene's views hold one or a few bands, "
+                              "and a rig's band "
+                              "cameras each look from their own pose (render the index "
+                              "without --diff; "
+                              "render --diff and eval compare the bands one by one)");
   }
+  return group;
+}
+
+// The truth an index of view v is computed from, [H, W, N]: the bands of the
+// views index_views gives (zero where none holds a band, which the index
+// does not weigh).
+torch::Tensor index_truth(const io::Scene& scene, int v, const std::vector<int>& group) {
+  if (scene.views[size_t(v)].bands.empty()) return truth_of(scene, v);
   const core::Intrinsics& k = scene.views[size_t(v)].camera.intrinsics;
   torch::Tensor truth = torch::zeros({k.height, k.width, scene.bands()}, torch::kFloat32);
   for (int u : group) {
@@ -133,8 +143,9 @@ std::optional<BandSelection> own_bands(const io::Scene& scene, int v,
 
 // The error heatmap and truth | render | error of one frame: STEM_diff_maxD.png
 // and STEM_compare.png. Returns the number of files written.
-int write_comparison(const std::string& stem, const torch::Tensor& image,  // [H, W, C]
-                     const torch::Tensor& truth,                           // [H, W, C]
+int write_comparison(const std::string& stem,
+                     const torch::Tensor& image,  // [H, W, C]
+                     const torch::Tensor& truth,  // [H, W, C]
                      const std::vector<double>& wavelengths_nm, const BandSelection& bands,
                      const torch::Tensor& shown,  // [H, W, 3] picture of image
                      const RenderOptions& options) {
@@ -157,8 +168,10 @@ std::vector<std::optional<BandSelection>> own_comparisons(const io::Scene& scene
   std::vector<std::optional<BandSelection>> out(frames.size());
   if (!options.diff || !scene.band_per_view()) return out;
   core::require(!options.band_map.defined(),
-                "--diff with --wavelengths or --response maps every band of the truth to other "
-                "channels; the views of this band-per-view scene hold one or a few bands: drop "
+                "--diff with --wavelengths or --response maps every band of "
+                "the truth to other "
+                "channels; the views of this band-per-view scene hold one or a "
+                "few bands: drop "
                 "them to compare each view's own bands");
   int with_truth = 0, without_band = 0;
   std::string example;
@@ -190,7 +203,7 @@ int render_index_frames(const io::Scene& scene, const model::Gaussians& model,
   if (options.diff)
     for (const Frame& frame : frames)
       if (frame.view >= 0 && !scene.views[size_t(frame.view)].bands.empty())
-        index_truth(scene, frame.view, index, map);
+        index_views(scene, frame.view, index, map);
   const std::string& label = index.name;
   nlohmann::json summary = {{"index", label},
                             {"a", index.a.name},
@@ -216,7 +229,8 @@ int render_index_frames(const io::Scene& scene, const model::Gaussians& model,
     }
     nlohmann::json record = {{"name", frame.name}, {"mean", number_or_null(finite_mean(values))}};
     if (options.diff && frame.view >= 0) {
-      const torch::Tensor truth = index_values(index_truth(scene, frame.view, index, map), map);
+      const torch::Tensor truth = index_values(
+          index_truth(scene, frame.view, index_views(scene, frame.view, index, map)), map);
       const torch::Tensor error = (values - truth).abs();  // NaN where either has no signal
       const double mae = finite_mean(error);
       record["truth_mean"] = number_or_null(finite_mean(truth));
