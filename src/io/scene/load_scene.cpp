@@ -30,6 +30,7 @@ struct Candidate {
   fs::path clean_path;
   std::vector<std::string> split_keys;  // normalised relative paths
   std::vector<int> bands;               // source bands the file holds (empty: all)
+  int rig_camera = -1;
   // After band selection: the scene band and file band of each one kept.
   std::vector<int> scene_bands, file_bands;
 };
@@ -40,6 +41,7 @@ struct Found {
   std::vector<std::string> warnings, notes;
   std::vector<double> wavelengths_nm;
   std::optional<double> scale;
+  std::optional<TransformsRig> rig;
   PointCloud points;
   fs::path points_file;  // points.ply, when the points came from one
   bool rgb = false;
@@ -124,6 +126,7 @@ Found from_transforms(const fs::path& root, const LoadOptions& options) {
   found.layout = "transforms.json";
   found.wavelengths_nm = tf.wavelengths_nm;
   found.scale = tf.scale;
+  found.rig = tf.rig;
   bool any_cube = false, all_cubes = true;
   for (const auto& f : tf.frames) {
     any_cube = any_cube || !f.hyperspectral_file_path.empty();
@@ -150,6 +153,7 @@ Found from_transforms(const fs::path& root, const LoadOptions& options) {
     c.camera.intrinsics = f.intrinsics;
     c.camera.world_to_camera = core::opengl_c2w_to_opencv_w2c(f.camera_to_world_gl);
     c.bands = f.bands;
+    c.rig_camera = f.rig_camera;
     c.data_path = existing_data(root, rel, options.downscale);
     if (c.data_path.empty())
       found.warnings.push_back("frames[" + std::to_string(i) + "]: missing file " +
@@ -343,6 +347,7 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
   scene->warnings = found.warnings;
   scene->notes = found.notes;
   scene->points = found.points;
+  scene->rig = found.rig;
 
   // Sorted as nerfstudio sorts frames, so split indices match its own.
   std::vector<Candidate> kept;
@@ -440,6 +445,7 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
     v.bands = c.scene_bands;
     v.file_bands = c.file_bands;
     v.file_band_count = int64_t(c.bands.size());
+    v.rig_camera = c.rig_camera;
     scene->views.push_back(std::move(v));
   }
   if (kept.front().data_path == first_path)

@@ -23,6 +23,7 @@
 #include "core/camera.h"
 #include "io/cube/cube.h"
 #include "io/ply/ply.h"
+#include "io/rig/rig_layout.h"
 #include "io/undistort/undistort.h"
 
 namespace ddhgs::io {
@@ -55,6 +56,9 @@ struct View {
   // how many bands the file holds.
   std::vector<int> file_bands;
   int64_t file_band_count = 0;
+  // The rig camera (RigCameraIndex) that took the view, one of Scene::rig's
+  // cameras; -1: none.
+  int rig_camera = -1;
 };
 
 // A part of a view: pixels [x0, x1) x [y0, y1) (x1 or y1 0: to the view's
@@ -73,6 +77,8 @@ class Scene {
   std::vector<int> train, test;        // indices into views; disjoint
   std::vector<double> wavelengths_nm;  // one per loaded band
   PointCloud points;                   // xyz undefined when the dataset has none
+  // A rig scene's band cameras (transforms.json "rig"); nullopt otherwise.
+  std::optional<TransformsRig> rig;
   SampleType stored_type = SampleType::F32;
   double scale = 1;                   // divisor applied to stored samples
   std::vector<std::string> warnings;  // problems found while loading

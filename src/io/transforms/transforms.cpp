@@ -167,6 +167,50 @@ void require_unique_files(const Reader& in, const std::vector<TransformsFrame>& 
   }
 }
 
+// A whole number from 0 (a rig camera index).
+int index_value(const Reader& in, const json& value, const std::string& where) {
+  const double v = in.number(value, where);
+  if (v < 0 || v != std::floor(v) || v > 1e6) in.fail(where, "expected a camera index (0, 1, ...)");
+  return int(v);
+}
+
+TransformsRig parse_rig(const Reader& in, const json& value) {
+  if (!value.is_object()) in.fail("rig", "expected an object");
+  TransformsRig rig;
+  const json* reference = in.find(value, "reference_camera");
+  if (!reference) in.fail("rig", "missing key \"reference_camera\"");
+  rig.reference_camera = index_value(in, *reference, "rig.reference_camera");
+  if (const json* v = in.find(value, "unit_m"))
+    rig.unit_m = in.positive(*v, "rig.unit_m", "metres");
+  const json* cameras = in.find(value, "cameras");
+  if (!cameras) in.fail("rig", "missing key \"cameras\"");
+  in.array(*cameras, "rig.cameras");
+  for (size_t i = 0; i < cameras->size(); ++i) {
+    const std::string where = "rig.cameras[" + std::to_string(i) + "]";
+    const json& c = (*cameras)[i];
+    if (!c.is_object()) in.fail(where, "expected an object");
+    RigCameraInfo camera;
+    const json* index = in.find(c, "index");
+    if (!index) in.fail(where, "missing key \"index\"");
+    camera.index = index_value(in, *index, where + ".index");
+    if (rig.camera(camera.index))
+      in.fail(where, "camera " + std::to_string(camera.index) + " is listed twice");
+    if (const json* v = in.find(c, "band")) camera.band = in.string(*v, where + ".band");
+    if (const json* v = in.find(c, "rig_relatives_deg")) {
+      const json& angles = in.array(*v, where + ".rig_relatives_deg");
+      if (angles.size() != 3) in.fail(where + ".rig_relatives_deg", "expected 3 angles in degrees");
+      for (size_t a = 0; a < 3; ++a)
+        camera.relatives_deg.push_back(
+            in.number(angles[a], where + ".rig_relatives_deg[" + std::to_string(a) + "]"));
+    }
+    rig.cameras.push_back(camera);
+  }
+  if (!rig.camera(rig.reference_camera))
+    in.fail("rig.reference_camera",
+            "camera " + std::to_string(rig.reference_camera) + " is not one of rig.cameras");
+  return rig;
+}
+
 TransformsFile parse(const Reader& in, const json& root) {
   if (!root.is_object()) in.fail("top level", "expected a JSON object");
   TransformsFile file;
@@ -204,6 +248,8 @@ TransformsFile parse(const Reader& in, const json& root) {
         frame.bands.push_back(int(index));
       }
     }
+    if (const json* v = in.find(f, "rig_camera"))
+      frame.rig_camera = index_value(in, *v, where + ".rig_camera");
     file.frames.push_back(std::move(frame));
   }
   require_unique_files(in, file.frames);
@@ -225,6 +271,13 @@ TransformsFile parse(const Reader& in, const json& root) {
         in.fail(where, "band " + std::to_string(b) + " is past the " +
                            std::to_string(file.wavelengths_nm.size()) + " wavelengths listed");
     }
+  if (const json* v = in.find(root, "rig")) file.rig = parse_rig(in, *v);
+  for (size_t i = 0; i < file.frames.size(); ++i) {
+    const int camera = file.frames[i].rig_camera;
+    if (camera >= 0 && !(file.rig && file.rig->camera(camera)))
+      in.fail("frames[" + std::to_string(i) + "].rig_camera",
+              "camera " + std::to_string(camera) + " is not one of the top-level rig's cameras");
+  }
   if (const json* v = in.find(root, "ply_file_path"))
     file.ply_file_path = in.string(*v, "ply_file_path");
   if (const json* v = in.find(root, "applied_transform"))
@@ -308,6 +361,7 @@ void write_transforms(const fs::path& path, const TransformsFile& file) {
     frame["transform_matrix"] = matrix_json(f.camera_to_world_gl, 4);
     if (!shared) put_intrinsics(frame, f.intrinsics);
     if (!f.bands.empty()) frame["bands"] = f.bands;
+    if (f.rig_camera >= 0) frame["rig_camera"] = f.rig_camera;
     frames.push_back(std::move(frame));
   }
   root["frames"] = std::move(frames);
@@ -316,6 +370,17 @@ void write_transforms(const fs::path& path, const TransformsFile& file) {
   // 3 x 4, as nerfstudio writes it.
   if (file.applied_transform) root["applied_transform"] = matrix_json(*file.applied_transform, 3);
   if (file.scale) root["scale"] = *file.scale;
+  if (file.rig) {
+    json cameras = json::array();
+    for (const RigCameraInfo& c : file.rig->cameras) {
+      json camera = {{"index", c.index}, {"band", c.band}};
+      if (!c.relatives_deg.empty()) camera["rig_relatives_deg"] = c.relatives_deg;
+      cameras.push_back(camera);
+    }
+    json rig = {{"reference_camera", file.rig->reference_camera}, {"cameras", cameras}};
+    if (file.rig->unit_m > 0) rig["unit_m"] = file.rig->unit_m;
+    root["rig"] = rig;
+  }
   if (!file.train_files.empty()) root["train_filenames"] = file.train_files;
   if (!file.test_files.empty()) root["test_filenames"] = file.test_files;
   // dump() prints doubles with 17 significant digits, so poses round-trip exactly.

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "io/rig/rig_layout.h"
 
 namespace ddhgs::io {
 
@@ -19,6 +20,10 @@ struct TransformsFrame {
   // "wavelengths" list (0-based indices, in the file's band order). Empty:
   // the file holds every band.
   std::vector<int> bands;
+  // ddhgs extension for rig scenes: the RigCameraIndex of the band camera
+  // that took the frame (one of TransformsFile::rig's cameras; MicaSense
+  // numbers them from 0 or 1); -1: none.
+  int rig_camera = -1;
 };
 
 struct TransformsFile {
@@ -31,6 +36,9 @@ struct TransformsFile {
   std::optional<double> scale;  // optional divisor for integer cubes
   // Optional explicit split: file_path values of the train / test frames.
   std::vector<std::string> train_files, test_files;
+  // ddhgs extension (`ddhgs process --rig`): the rig's band cameras as their
+  // metadata describes them.
+  std::optional<TransformsRig> rig;
 };
 
 // Throws core::Error naming the file for missing keys or wrong types.
