@@ -48,6 +48,8 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   set("--light-change", c.light_change, f.light_change);
   if (!a.light_factors.empty())
     c.light_factors = parse_number_list(a.light_factors, "--light-factors");
+  set("--rig-perturb-deg", c.rig_perturb_deg, f.rig_perturb_deg);
+  set("--rig-offset-cm", c.rig_offset_cm, f.rig_offset_cm);
   if (a.no_ground) c.ground = false;
   if (a.noisy_edges) c.noisy_edges = true;
   return c;
@@ -91,6 +93,12 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--light-factors", args->light_factors,
                   "Rig presets: each capture's light factor, one per capture "
                   "(\"1,0.8,1.1,...\"), instead of drawn ones");
+  cmd->add_option("--rig-perturb-deg", f.rig_perturb_deg,
+                  "rig presets: each band camera but camera 1 truly sits turned by this many "
+                  "degrees (random axis) from its factory RigRelatives, which its metadata keeps");
+  cmd->add_option("--rig-offset-cm", f.rig_offset_cm,
+                  "rig presets: each band camera but camera 1 truly sits this many cm (metres "
+                  "are scene units) from camera 1, across the rig's face");
   cmd->add_flag("--no-ground", args->no_ground, "Leave out the ground disc");
   cmd->add_flag("--noisy-edges", args->noisy_edges, "Much noisier edge bands (ablations)");
   return [args, cmd] {

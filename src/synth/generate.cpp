@@ -130,6 +130,12 @@ void validate(const SynthConfig& c) {
   for (double f : c.light_factors)
     core::require(std::isfinite(f) && f > 0 && f <= 10,
                   "synth: expected every --light-factors value > 0 and <= 10");
+  core::require(c.rig_perturb_deg >= 0 && c.rig_perturb_deg <= 10,
+                "synth: expected 0 <= --rig-perturb-deg <= 10 degrees");
+  core::require(c.rig_offset_cm >= 0 && c.rig_offset_cm <= 100,
+                "synth: expected 0 <= --rig-offset-cm <= 100");
+  core::require(c.rig || (c.rig_perturb_deg == 0 && c.rig_offset_cm == 0),
+                "synth: --rig-perturb-deg and --rig-offset-cm need --preset rig or rig-nadir");
   // One view is rendered as float32 [H, W, B] at a time; more than this is a typo.
   const double view_gib = double(c.width) * double(c.height) * double(c.bands) * 4.0 / (1 << 30);
   core::require(c.width <= 16384 && c.height <= 16384 && view_gib <= 4.0,

@@ -47,6 +47,13 @@ struct SynthConfig {
   // light never changes).
   double light_change = 0;
   std::vector<double> light_factors;
+  // With rig: each band camera but camera 1 (the rig's frame) truly sits
+  // turned by this angle (degrees, about a random axis) and with its centre
+  // this far (cm, in a random direction across the rig's face) from where
+  // its factory RigRelatives, which its metadata keeps, place it. Scene
+  // units are metres.
+  double rig_perturb_deg = 0;
+  double rig_offset_cm = 0;
 
   std::vector<double> wavelengths_nm() const;
 };

@@ -65,6 +65,36 @@ std::string band_file(const std::string& stem, int index) {
   return stem + "_" + std::to_string(index) + ".tif";
 }
 
+// A band camera's true placement against its factory one: a rotation
+// vector (rad) and a centre offset (m, which are scene units), both in
+// camera 1's axes (the rig's frame; camera 1 has none), so that a point at
+// x in camera 1's axes is at T R(rotation) (x - offset) in the camera's,
+// T its factory rotation (io/rig/rig_layout.h).
+struct RigDrift {
+  core::Vec3 rotation_rad, offset;
+};
+
+std::vector<RigDrift> rig_drifts(const SynthConfig& config, const std::vector<RigBandCamera>& rig) {
+  std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), 0x716d7u};
+  std::mt19937_64 rng(seq);
+  auto uniform = [&] { return double(rng() >> 11) * 0x1.0p-53; };
+  std::vector<RigDrift> out(rig.size());
+  for (size_t i = 0; i < rig.size(); ++i) {
+    // An axis uniform on the sphere; an offset across the rig's face (x, y).
+    const double z = 2 * uniform() - 1, phi = 2 * kPi * uniform(), psi = 2 * kPi * uniform();
+    if (rig[i].index == 1) continue;
+    const double r = std::sqrt(1 - z * z);
+    out[i].rotation_rad =
+        core::Vec3{r * std::cos(phi), r * std::sin(phi), z} * (config.rig_perturb_deg * kPi / 180);
+    out[i].offset = core::Vec3{std::cos(psi), std::sin(psi), 0} * (config.rig_offset_cm / 100);
+  }
+  return out;
+}
+
+std::vector<double> scaled(const core::Vec3& v, double scale) {
+  return {v.x * scale, v.y * scale, v.z * scale};
+}
+
 }  // namespace
 
 std::vector<double> capture_light_factors(const SynthConfig& config) {
@@ -91,6 +121,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
   const auto start = std::chrono::steady_clock::now();
   SynthResult result;
   const std::vector<RigBandCamera> rig = rededge_rig();
+  const std::vector<RigDrift> drift = rig_drifts(config, rig);
   std::vector<double> wavelengths;
   for (const RigBandCamera& b : rig) wavelengths.push_back(b.centre_nm);
   io::write_folder_atomically({out, io::OutputKind::Scene, force, {}}, [&](const fs::path& tmp) {
@@ -161,6 +192,10 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
       scene_band[size_t(order[i])] = int(i);
     }
     truth.ply_file_path = "points.ply";
+    // The rig as its metadata describes it (the truth's frames have the true poses).
+    truth.rig = io::TransformsRig{1, 1.0, {}};
+    for (const RigBandCamera& b : rig)
+      truth.rig->cameras.push_back({b.index, b.name, b.relatives_deg});
     // The same captures as registered cubes: every band from the reference
     // pose (the rig's camera without rotation), as a hyperspectral camera
     // would take them; for comparing a band-per-view scene with one.
@@ -194,8 +229,10 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
       for (size_t i = 0; i < rig.size(); ++i) {
         const RigBandCamera& band = rig[i];
         core::Camera camera = references[size_t(c)];
-        const core::Mat3 rotation = io::rig_relative_rotation(band.relatives_deg);
-        camera.world_to_camera = core::Mat4::from(rotation, {0, 0, 0}) * camera.world_to_camera;
+        const core::Mat3 rotation = io::rig_relative_rotation(band.relatives_deg) *
+                                    io::rotation_from_vector(drift[i].rotation_rad);
+        camera.world_to_camera = core::Mat4::from(rotation, (rotation * drift[i].offset) * -1.0) *
+                                 camera.world_to_camera;
         const torch::Tensor clean_all = render_clean(scene, setup, camera, config.supersample);
         const torch::Tensor noisy_all = add_noise(clean_all, setup, rng);
         const torch::Tensor clean = clean_all.select(2, int64_t(i)).contiguous();
@@ -215,6 +252,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         frame.intrinsics = camera.intrinsics;
         frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(camera.world_to_camera);
         frame.bands = {scene_band[i]};
+        frame.rig_camera = band.index;
         truth.frames.push_back(frame);
         if (i == 0) {  // points from the reference camera, spectra from every band later
           const int per_view = (config.points + config.views - 1) / config.views;
@@ -251,6 +289,9 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     if (config.nadir) j["overlap"] = config.overlap;
     j["light_factors"] = light;
     j["supersample"] = config.supersample;
+    j["unit_m"] = 1.0;
+    j["rig_perturb_deg"] = config.rig_perturb_deg;
+    j["rig_offset_cm"] = config.rig_offset_cm;
     j["noise_scale"] = config.noise_scale;
     j["layout"] =
         "captures/IMG_NNNN_k.tif (raw counts), panel/PANL_0000_k.tif, truth/ (a "
@@ -258,11 +299,16 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         "registered five-band cubes from the reference pose)";
     nlohmann::json cameras = nlohmann::json::array();
     std::vector<double> albedo;
-    for (const RigBandCamera& b : rig) {
+    for (size_t i = 0; i < rig.size(); ++i) {
+      const RigBandCamera& b = rig[i];
+      // The truth beside the factory RigRelatives the metadata keeps: the
+      // drift in camera 1's axes (RigDrift).
       cameras.push_back({{"rig_index", b.index},
                          {"band", b.name},
                          {"centre_nm", b.centre_nm},
                          {"rig_relatives_deg", b.relatives_deg},
+                         {"true_rotation_error_deg", scaled(drift[i].rotation_rad, 180 / kPi)},
+                         {"true_offset_cm", scaled(drift[i].offset, 100)},
                          {"irradiance", b.irradiance},
                          {"panel_albedo", b.panel_albedo}});
       albedo.push_back(b.panel_albedo);

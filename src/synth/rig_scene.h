@@ -14,8 +14,9 @@
 //   cubes/                   the same captures as registered five-band cubes
 //                            from the reference pose (noisy and clean/), as a
 //                            hyperspectral camera would take them
-//   synth.json               the parameters, rig rotations, panel albedo and
-//                            each capture's light factor (light_factors)
+//   synth.json               the parameters, rig rotations (factory and true
+//                            errors), panel albedo and each capture's light
+//                            factor (light_factors)
 #pragma once
 #include <filesystem>
 #include <string>
