@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <map>
+#include <optional>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -88,6 +89,10 @@ ProcessResult process_rig(const RigProcessOptions& options) {
   if (run_sfm) find_colmap(options.colmap);
   io::ColmapModel given;
   if (!run_sfm) given = read_given_poses(options.poses);
+  // Given poses in a transforms.json: its points and its rig's unit.
+  std::optional<io::TransformsFile> given_file;
+  if (!run_sfm && fs::is_regular_file(options.poses))
+    given_file = io::read_transforms(options.poses);
 
   const std::vector<io::RigCapture> captures = io::read_rig_captures(options.captures_dir);
   const std::vector<io::RigBandImage>& cameras = captures.front().bands;
@@ -273,20 +278,27 @@ ProcessResult process_rig(const RigProcessOptions& options) {
         frame.camera_to_world_gl =
             core::opencv_w2c_to_opengl_c2w(core::Mat4::from(turn, {0, 0, 0}) * ref_w2c);
         frame.bands = {scene_band.at(b.rig_index)};
+        frame.rig_camera = b.rig_index;
         transforms.frames.push_back(frame);
         (is_test[c] ? transforms.test_files : transforms.train_files)
             .push_back(frame.hyperspectral_file_path);
       }
     }
+    // The rig as its metadata describes it, for training's per-camera
+    // corrections (camera_refinement.rig); metres per unit when the given
+    // poses say it.
+    transforms.rig = io::TransformsRig{reference, 0, {}};
+    for (const io::RigBandImage& b : cameras)
+      transforms.rig->cameras.push_back({b.rig_index, b.band_name, b.rig_relatives_deg});
+    if (given_file && given_file->rig) transforms.rig->unit_m = given_file->rig->unit_m;
     io::PointCloud cloud = io::colmap_points(model);
     if (cloud.xyz.defined() && cloud.xyz.size(0) > 0) {
       io::write_point_ply(tmp / "points.ply", cloud);
       transforms.ply_file_path = "points.ply";
       result.points = cloud.xyz.size(0);
-    } else if (!run_sfm && fs::is_regular_file(options.poses)) {
-      const io::TransformsFile given_file = io::read_transforms(options.poses);
-      const fs::path ply = options.poses.parent_path() / given_file.ply_file_path;
-      if (!given_file.ply_file_path.empty() && fs::is_regular_file(ply)) {
+    } else if (given_file) {
+      const fs::path ply = options.poses.parent_path() / given_file->ply_file_path;
+      if (!given_file->ply_file_path.empty() && fs::is_regular_file(ply)) {
         io::PointCloud points = io::read_point_ply(ply);
         points.spectra = torch::Tensor();  // its bands need not be this scene's
         io::write_point_ply(tmp / "points.ply", points);

@@ -10,7 +10,11 @@
 //    vegetation; on the synthetic rig the blue camera's dark images posed
 //    to 1.1 degrees median, NIR's to 0.15). Every other band camera of a capture takes the
 //    reference pose turned by the two cameras' RigRelatives rotations; the
-//    cameras' few-centimetre offsets are not modelled (no translation).
+//    cameras' few-centimetre offsets are not placed (no translation):
+//    training refines both per camera (camera_refinement.rig), from each
+//    frame's "rig_camera" and the top-level "rig" (reference camera, factory
+//    rotations, and metres per unit when given poses in a transforms.json
+//    say it).
 //  - transforms.json names each frame's band ("bands"), with a split by
 //    capture (the Hyper-NeRF rule over captures: all bands of a capture are
 //    on the same side); process.json says which calibration each camera used
