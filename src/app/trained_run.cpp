@@ -120,6 +120,16 @@ TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_ove
   run.scene = io::load_scene(data, run.config.data.load);
   io::log_scene_messages(*run.scene);
   check_model_matches_scene(paths.gaussians(), model.ply, *run.scene);
+  if (fs::exists(paths.rig_corrections())) {
+    // The band cameras as training corrected them (camera_refinement.rig).
+    const auto corrections = io::read_rig_corrections(paths.rig_corrections());
+    core::require(run.scene->rig.has_value(), paths.rig_corrections(),
+                  "corrects rig cameras, but " + data.string() + " is not a rig scene");
+    for (io::View& v : run.scene->views)
+      if (const auto it = corrections.find(v.rig_camera); it != corrections.end())
+        v.camera =
+            io::corrected_band_camera(v.camera, run.scene->rig->turn(v.rig_camera), it->second);
+  }
   run.gaussians = model::from_ply(model.ply);
   run.background = model.background;
   const fs::path denoiser = train::denoiser_path(paths);

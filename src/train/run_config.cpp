@@ -132,6 +132,10 @@ CameraRefinementConfig parse_cameras(const json& c, const std::string& source) {
   o.enabled = read<bool>(c, s, "enabled", source);
   o.rotation_lr = read<double>(c, s, "rotation_lr", source);
   o.translation_lr = read<double>(c, s, "translation_lr", source);
+  o.rig = read<bool>(c, s, "rig", source);
+  o.rig_rotation_lr = read<double>(c, s, "rig_rotation_lr", source);
+  o.rig_offset_lr = read<double>(c, s, "rig_offset_lr", source);
+  o.rig_pull = read<double>(c, s, "rig_pull", source);
   return o;
 }
 

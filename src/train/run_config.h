@@ -102,8 +102,13 @@ struct WavelengthEncoderConfig {
 };
 
 struct CameraRefinementConfig {
-  bool enabled = false;
+  bool enabled = false;  // one correction per training view (train/camera_refinement.h)
   double rotation_lr = 0, translation_lr = 0;
+  // One correction per band camera of a rig scene, shared by every capture
+  // (train/rig_refinement.h): Adam rates of its rotation (rad) and offset
+  // (scene extents), and the weight of its L2 pull towards the factory values.
+  bool rig = false;
+  double rig_rotation_lr = 0, rig_offset_lr = 0, rig_pull = 0;
 };
 
 struct DensifyConfig {

@@ -28,6 +28,8 @@ struct RunPaths {
   // The background spectrum a run learned or took from its views
   // (model.learn_background, model.background_from_views).
   std::filesystem::path learned_background() const { return root / "background.json"; }
+  // The band cameras' corrections a rig run learned (camera_refinement.rig).
+  std::filesystem::path rig_corrections() const { return root / "rig_corrections.json"; }
   // The distillation's pseudo-view targets while it runs (removed at the end).
   std::filesystem::path pseudo_views() const { return root / "pseudo_views.pt"; }
 };

@@ -190,6 +190,10 @@ void Trainer::build_modules() {
                          return in.view < 0 ? torch::zeros({}) : exposure_->prior(in.view);
                        }});
   }
+  if (config_.camera_refinement.rig) {
+    rig_refinement_ = RigRefinement(*scene_);
+    add_module("rig_refinement", rig_refinement_.ptr(), config_.camera_refinement.rig_rotation_lr);
+  }
   const DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());
   if (diffusion.enabled()) {
     // The denoiser sees every band of a view at once; a view that holds one
@@ -259,6 +263,8 @@ void Trainer::set_learning_rates(int64_t iteration) {
   if (camera_refinement_)
     state_.adam.group("camera_refinement/translation").lr =
         config_.camera_refinement.translation_lr;
+  if (rig_refinement_)
+    state_.adam.group("rig_refinement/offset").lr = config_.camera_refinement.rig_offset_lr;
 }
 
 render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor& sink,
@@ -269,6 +275,8 @@ render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor
       crop ? crop_camera(scene_->views[view].camera, *crop) : scene_->views[view].camera;
   model::Gaussians g = state_.gaussians;  // handles to the same tensors
   if (band_map.defined()) g.colour = g.colour.mapped(band_map);
+  if (rig_refinement_)
+    std::tie(g.means, g.quats) = rig_refinement_->move(view, camera, g.means, g.quats, extent_);
   if (camera_refinement_)
     std::tie(g.means, g.quats) = camera_refinement_->move(view, camera, g.means, g.quats, extent_);
   return model::render_gaussians(g, camera, background_, band_offsets(), sink, rest_step);
@@ -477,6 +485,8 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
                             mix_seed(config_.seed, kTermStream + uint64_t(iteration))});
     if (pseudo) loss.total = loss.total * diffusion_->options().distill_weight;
     if (crop) loss.total = loss.total * crop->loss_scale;
+    if (rig_refinement_ && !pseudo)
+      loss.total = loss.total + rig_refinement_->pull(config_.camera_refinement.rig_pull);
   }
   {
     core::StageScope stage("backward (other)");
@@ -830,8 +840,13 @@ json Trainer::test_psnr() {
   double stored = 0, clean = 0;
   size_t cleans = 0;
   for (int v : scene_->test) {
+    // A rig's held-out views are seen by their corrected band cameras.
+    const core::Camera camera =
+        rig_refinement_ ? rig_refinement_->corrected(v, scene_->views[v].camera, extent_)
+                        : scene_->views[v].camera;
     const torch::Tensor image = scene_->view_slice(
-        v, eval::render_view(*scene_, state_.gaussians, background_, v, offsets).clamp(0, 1));
+        v,
+        model::render_gaussians(state_.gaussians, camera, background_, offsets).image.clamp(0, 1));
     stored += eval::psnr_db(image, scene_->image(v));
     const torch::Tensor truth = scene_->clean_image(v);
     if (truth.defined()) {
@@ -899,6 +914,8 @@ void Trainer::write_outputs(double seconds, const json& test_at_end) {
     summary.update(gains);
   }
   summary.update(test_at_end.is_null() ? test_psnr() : test_at_end);
+  if (rig_refinement_)
+    summary["rig_corrections"] = rig_refinement_->report(*scene_, extent_, run_.rig_corrections());
   if (diffusion_) write_denoiser(denoiser_path(run_), diffusion_->denoiser());
   if (background_module_ || config_.model.background_from_views) {
     // eval, render and report take it from here (config.json stays as the

@@ -24,6 +24,7 @@
 #include "train/diffusion_term.h"
 #include "train/exposure_correction.h"
 #include "train/losses.h"
+#include "train/rig_refinement.h"
 #include "train/run_config.h"
 #include "train/run_folder.h"
 #include "train/schedule.h"
@@ -177,6 +178,7 @@ class Trainer {
   model::WavelengthEncoder encoder_{nullptr};
   CameraRefinement camera_refinement_{nullptr};     // camera_refinement.enabled
   ExposureCorrection exposure_{nullptr};            // model.exposure_correction
+  RigRefinement rig_refinement_{nullptr};           // camera_refinement.rig
   std::unique_ptr<DiffusionTerm> diffusion_;        // loss.diffusion > 0
   torch::Tensor wavelengths01_;                     // [N] the encoder's input
   std::unique_ptr<DenoiserFinetuning> finetuning_;  // made on its first step
