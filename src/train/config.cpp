@@ -160,9 +160,9 @@ constexpr AddedKey kAddedKeys[] = {
     {"camera_refinement.rotation_lr", "0.0001"},     // refinement off
     {"camera_refinement.translation_lr", "0.0001"},  // refinement off
     {"camera_refinement.rig", "false"},
-    {"camera_refinement.rig_rotation_lr", "0.0002"},  // rig refinement off
-    {"camera_refinement.rig_offset_lr", "0.0002"},    // rig refinement off
-    {"camera_refinement.rig_pull", "0.001"},          // rig refinement off
+    {"camera_refinement.rig_rotation_lr", "0.0005"},  // rig refinement off
+    {"camera_refinement.rig_offset_lr", "0.0005"},    // rig refinement off
+    {"camera_refinement.rig_pull", "0.00001"},        // rig refinement off
     {"init.extra_random_per_pixel", "0"},             // acts at initialisation only
     {"model.spectral_rank", "0"},                     // one SH set per band
     {"optim.basis_lr", "0.001"},                      // per band: no basis
