@@ -12,6 +12,7 @@
 #include "core/early_setup.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 #include "core/threads.h"
 
 namespace {
@@ -29,6 +30,36 @@ std::string torch_error_text(const c10::Error& e) {
     return "out of memory: " + text.substr(tried, text.find('.', tried) - tried) +
            " (is a size in the input, or a flag, far too large?)";
   return text;
+}
+
+// CLI11's message with every word it quotes from the command line (a
+// 50 MB number, a NUL) as core::quoted_value() would show it: at most
+// core::kQuotedChars characters of each.
+std::string clipped_parse_error(const std::string& text) {
+  std::string out;
+  size_t at = 0;
+  while (at < text.size()) {
+    const size_t space = std::min(text.find(' ', at), text.size());
+    const std::string_view word(text.data() + at, space - at);
+    out += word.size() > ddhgs::core::kQuotedChars ? ddhgs::core::quoted_value(word)
+                                                   : ddhgs::core::printable(word);
+    if (space < text.size()) out += ' ';
+    at = space + 1;
+  }
+  return out;
+}
+
+// An empty value is never meant: `--wavelengths ''` would otherwise render
+// the plain bands, `--index ''` no index. The first option of the parsed
+// subcommand given one, or null.
+const CLI::Option* option_with_empty_value(const CLI::App& command) {
+  for (const CLI::Option* option : command.get_options()) {
+    const bool flag = option->get_type_size_max() == 0 || option->get_expected_min() == 0;
+    if (flag || option->count() == 0) continue;
+    for (const std::string& value : option->results())
+      if (value.find_first_not_of(" \t") == std::string::npos) return option;
+  }
+  return nullptr;
 }
 
 }  // namespace
@@ -69,9 +100,17 @@ int main(int argc, char** argv) {
     if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
     std::string text = e.what();
     std::replace(text.begin(), text.end(), '\n', ' ');
-    std::cerr << "error: " << text << " (see --help)\n";
+    std::cerr << "error: " << clipped_parse_error(text) << " (see --help)\n";
     return 1;
   }
+  for (auto& [sub, run] : actions)
+    if (sub->parsed())
+      if (const CLI::Option* option = option_with_empty_value(*sub)) {
+        std::cerr << "error: " << option->get_name() << ": an empty value"
+                  << (option->get_positional() ? "" : " (give one, or leave the option out)")
+                  << "\n";
+        return 1;
+      }
   core::set_log_level(quiet     ? core::LogLevel::Quiet
                       : verbose ? core::LogLevel::Verbose
                                 : core::LogLevel::Normal);

@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 
 namespace ddhgs::core {
 namespace {
@@ -22,7 +23,7 @@ double parse_number(const std::string& word, const std::string& option) {
   auto [end, error] = std::from_chars(trimmed.data(), trimmed.data() + trimmed.size(), value);
   if (trimmed.empty() || error != std::errc() || end != trimmed.data() + trimmed.size() ||
       !std::isfinite(value))
-    throw Error(option + ": '" + word + "' is not a number");
+    throw Error(option + ": " + quoted_value(word) + " is not a number");
   return value;
 }
 
@@ -91,12 +92,14 @@ std::vector<double> parse_wavelength_list(const std::string& text, const std::st
   }
   if (!range) return items;
   if (items.size() != 3)
-    throw Error(option + ": '" + text + "' must be START:STOP:STEP (nm), e.g. 450:950:5");
+    throw Error(option + ": " + quoted_value(text) +
+                " must be START:STOP:STEP (nm), e.g. 450:950:5");
   const double start = items[0], stop = items[1], step = items[2];
   if (!(step > 0) || stop < start)
-    throw Error(option + ": '" + text + "' needs STOP >= START and a positive STEP");
+    throw Error(option + ": " + quoted_value(text) + " needs STOP >= START and a positive STEP");
   const double count = std::floor((stop - start) / step + 1e-9) + 1;
-  if (count > 100000) throw Error(option + ": '" + text + "' asks for over 100,000 wavelengths");
+  if (count > 100000)
+    throw Error(option + ": " + quoted_value(text) + " asks for over 100,000 wavelengths");
   std::vector<double> out;
   for (int64_t i = 0; i < int64_t(count); ++i) out.push_back(start + double(i) * step);
   return out;
@@ -137,8 +140,8 @@ ResponseMap response_map(const ResponseFunctions& response, const std::vector<do
       add_interpolated(from_nm, wavelength, w, map + c * N);
     }
     if (!(inside > 0))
-      throw Error("response '" + response.channels[size_t(c)] + "' has no response between " +
-                  nm(lo) + " and " + nm(hi) + ", the model's bands");
+      throw Error("response " + quoted_value(response.channels[size_t(c)]) +
+                  " has no response between " + nm(lo) + " and " + nm(hi) + ", the model's bands");
     for (int64_t n = 0; n < N; ++n) map[c * N + n] /= inside;
     out.centres_nm.push_back(centre / inside);
     out.captured.push_back(inside / total);

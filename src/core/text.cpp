@@ -2,6 +2,7 @@
 
 #include <cctype>
 #include <cstdio>
+#include <string>
 
 namespace ddhgs::core {
 
@@ -25,6 +26,47 @@ std::string join_numbers(const std::vector<double>& values) {
     out += item;
   }
   return out;
+}
+
+std::string printable(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte >= 0x20 && byte != 0x7f) {
+      out += c;
+      continue;
+    }
+    switch (c) {
+      case '\0':
+        out += "\\0";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      default: {
+        char escape[8];
+        std::snprintf(escape, sizeof escape, "\\x%02x", unsigned(byte));
+        out += escape;
+      }
+    }
+  }
+  return out;
+}
+
+std::string quoted_value(std::string_view value) {
+  if (value.size() <= kQuotedChars) return "'" + printable(value) + "'";
+  size_t kept = kQuotedChars;
+  // Not inside a UTF-8 sequence: back over its continuation bytes.
+  while (kept > 0 && (static_cast<unsigned char>(value[kept]) & 0xC0) == 0x80) --kept;
+  return "'" + printable(value.substr(0, kept)) + "...' (and " +
+         std::to_string(value.size() - kept) + " more characters)";
 }
 
 }  // namespace ddhgs::core
