@@ -59,8 +59,9 @@ int64_t nearest_band(const std::vector<double>& wavelengths_nm, double wavelengt
                      const std::string& option) {
   core::require(!wavelengths_nm.empty(),
                 option +
-                    ": the model has no wavelengths; choose bands by their colour mapping "
-                    "instead");
+                    ": the model's bands have no wavelengths (its PLY has no 'comment "
+                    "wavelengths' line), so none can be chosen in nm; without " +
+                    option + ", export shows three bands spread over them");
   auto nearest =
       std::min_element(wavelengths_nm.begin(), wavelengths_nm.end(), [&](double a, double b) {
         return std::abs(a - wavelength_nm) < std::abs(b - wavelength_nm);
@@ -82,6 +83,16 @@ ColourMapping cie_mapping(const std::vector<double>& wavelengths_nm, int64_t ban
   if (core::is_rgb(wavelengths_nm, bands)) {
     mapping.linear = core::selection_map(3, {0, 1, 2});
     mapping.description = "RGB (the model's own three channels)";
+    return mapping;
+  }
+  if (wavelengths_nm.empty()) {
+    // Bands known by index only: three spread over them, long ones as red,
+    // as render-ply previews such a model.
+    const std::vector<int64_t> rows = {(bands - 1) * 3 / 4, (bands - 1) / 2, (bands - 1) / 4};
+    mapping.linear = core::selection_map(bands, rows);
+    mapping.description = "bands " + std::to_string(rows[0]) + ", " + std::to_string(rows[1]) +
+                          ", " + std::to_string(rows[2]) +
+                          " (by index: the model has no wavelengths) as R, G, B";
     return mapping;
   }
   core::require(int64_t(wavelengths_nm.size()) == bands,

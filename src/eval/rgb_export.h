@@ -39,7 +39,9 @@ struct ColourMapping {
 // Pseudo-RGB as `ddhgs render` shows it: CIE 1931 + D65 to linear sRGB, then
 // the sRGB curve (srgb_curve false: linear light, for tools that apply the
 // curve to the image). An RGB model (core::is_rgb: an RGB dataset's run) is
-// RGB already: the identity, no curve. core::Error when the wavelengths miss 380-780 nm.
+// RGB already: the identity, no curve. A model without wavelengths (bands by
+// index) shows three bands spread over them, the longest as red, as
+// render-ply previews it. core::Error when the wavelengths miss 380-780 nm.
 ColourMapping cie_mapping(const std::vector<double>& wavelengths_nm, int64_t bands,
                           bool srgb_curve = true);
 

@@ -124,6 +124,34 @@ TEST(RgbExport, BadBandChoicesNameTheOption) {
   EXPECT_EQ(nearest_band(kWavelengths, 544, "--band"), 2);
 }
 
+TEST(RgbExport, AModelWithoutWavelengthsShowsThreeBandsByIndex) {
+  // Bands known by index only (a dataset without wavelengths): bands 5, 3
+  // and 1 of 8 as R, G, B, as render-ply previews them, unchanged.
+  io::GaussianPly model = random_model(6, 0.1, 5);
+  model.sh_dc = torch::randn({6, 8});
+  model.sh_rest = torch::randn({6, 8, 15});
+  model.wavelengths_nm.clear();
+  const ColourMapping mapping = cie_mapping({}, 8);
+  EXPECT_EQ(mapping.curve, ColourMapping::Curve::None);
+  EXPECT_NE(mapping.description.find("bands 5, 3, 1 (by index"), std::string::npos)
+      << mapping.description;
+  const io::GaussianPly out = map_colours(model, mapping);
+  const std::vector<int64_t> bands = {5, 3, 1};
+  for (int j = 0; j < 3; ++j)
+    EXPECT_TRUE(
+        torch::allclose(out.sh_rest.select(1, j), model.sh_rest.select(1, bands[size_t(j)])));
+  // Choosing bands in nm says why it cannot, and what works instead.
+  try {
+    nearest_band({}, 550, "--bands");
+    FAIL() << "chose a band by wavelength in a model without wavelengths";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--bands: the model's bands have no wavelengths (its PLY "
+                                         "has no 'comment wavelengths' line)"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(RgbExport, CropKeepsCentresInTheBoxAndOpaqueEnoughGaussians) {
   io::GaussianPly model = random_model(4, 0.1, 5);
   model.means =

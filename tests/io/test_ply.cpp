@@ -1,7 +1,9 @@
 // PLY files: round trips, hand-written ASCII files, files written and read
 // independently by Python/numpy, and malformed files.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -320,6 +322,80 @@ TEST(Ply, MalformedFilesGiveOneLineErrorsNamingTheFile) {
   write_text(dir / "faces.ply", "ply\nformat ascii 1.0\nelement face 0\nend_header\n");
   expect_error_naming(
       dir / "faces.ply", [&] { read_point_ply(dir / "faces.ply"); }, "'vertex'");
+}
+
+TEST(Ply, NumbersFloat32CannotRenderAreRefusedNamingWhere) {
+  auto dir = test::temp_dir("ply_range");
+  GaussianPly latent = random_gaussians(4, 2, 3);  // 2 latent channels
+  latent.wavelengths_nm = {450, 550, 650};
+  latent.basis = torch::randn({3, 2});
+  latent.mean = torch::rand({3});
+  write_gaussian_ply(dir / "latent.ply", latent);
+  const std::string bytes = read_text(dir / "latent.ply");
+  const size_t basis_line =
+      bytes.find("comment band_basis ", bytes.find("comment band_basis ") + 1);
+  const size_t header_end = bytes.find("end_header\n") + 11;
+  // The second basis line's mean replaced by `value`.
+  auto basis_value = [&](const std::string& value) {
+    std::string s = bytes;
+    const size_t first = basis_line + std::string("comment band_basis ").size();
+    s.replace(first, s.find(' ', first) - first, value);
+    return s;
+  };
+  auto refused = [&](const std::string& name, const std::string& content,
+                     const std::string& fragment) {
+    write_text(dir / name, content);
+    expect_error_naming(
+        dir / name, [&] { read_gaussian_ply(dir / name); }, fragment);
+  };
+  refused("basis_1e39.ply", basis_value("1e39"),
+          "'comment band_basis' line 2: '1e39' is out of range (at most 1e+18 in magnitude)");
+  refused("basis_1e400.ply", basis_value("-1e400"), "line 2: '-1e400' is out of range");
+  refused("basis_inf.ply", basis_value("inf"), "line 2: 'inf' is out of range");
+  refused("basis_nan.ply", basis_value("nan"), "line 2 has a non-number 'nan'");
+  refused("basis_long.ply", basis_value(std::string(1000, '7')),
+          "line 2: '" + std::string(80, '7') + "...' (and 920 more characters) is out of range");
+  std::string wavelengths = bytes;
+  wavelengths.replace(wavelengths.find("comment wavelengths 450"), 23, "comment wavelengths 4e20");
+  refused("wavelength_4e20.ply", wavelengths, "'comment wavelengths': '4e20' is out of range");
+  // A value just inside reads.
+  write_text(dir / "edge.ply", basis_value("1e18"));
+  EXPECT_EQ(read_gaussian_ply(dir / "edge.ply").mean[1].item<float>(), 1e18f);
+
+  // Vertex values: finite float32, but what no render survives.
+  auto vertex_value = [&](const std::string& property, float value) {
+    // Properties of the binary body in header order; Gaussian 0's value.
+    std::vector<std::string> order;
+    for (size_t at = bytes.find("property float "); at < header_end;
+         at = bytes.find("property float ", at + 1)) {
+      const size_t start = at + 15;
+      order.push_back(bytes.substr(start, bytes.find('\n', start) - start));
+    }
+    const size_t index = size_t(std::find(order.begin(), order.end(), property) - order.begin());
+    EXPECT_LT(index, order.size()) << property;
+    std::string s = bytes;
+    std::memcpy(&s[header_end + 4 * index], &value, 4);
+    return s;
+  };
+  refused("f_dc_1e30.ply", vertex_value("f_dc_1", 1e30f),
+          "f_dc_* of Gaussian 0 is 1e+30 (at most 1e+18 in magnitude)");
+  refused("rot_3e38.ply", vertex_value("rot_2", -3e38f), "rot_* of Gaussian 0 is 3e+38");
+  refused("scale_25.ply", vertex_value("scale_1", 25.f),
+          "scale_* of Gaussian 0 is 25, a width of 7.20049e+10 units");
+  write_text(dir / "scale_19.ply", vertex_value("scale_1", 19.f));
+  EXPECT_EQ(read_gaussian_ply(dir / "scale_19.ply").log_scales[0][1].item<float>(), 19.f);
+}
+
+TEST(Ply, OnlyRegularFilesAreRead) {
+  auto dir = test::temp_dir("ply_special");
+  ASSERT_EQ(::mkfifo((dir / "pipe.ply").c_str(), 0600), 0);
+  expect_error_naming(
+      dir / "pipe.ply", [&] { read_gaussian_ply(dir / "pipe.ply"); }, "is a FIFO (named pipe)");
+  expect_error_naming(
+      dir / "pipe.ply", [&] { read_point_ply(dir / "pipe.ply"); }, "is a FIFO (named pipe)");
+  fs::create_directories(dir / "folder.ply");
+  expect_error_naming(
+      dir / "folder.ply", [&] { read_gaussian_ply(dir / "folder.ply"); }, "is a folder");
 }
 
 TEST(Ply, WriterRejectsBadShapesAndLeavesNoFile) {

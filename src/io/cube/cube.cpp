@@ -9,6 +9,7 @@
 #include "core/parallel.h"
 #include "core/text.h"
 #include "io/cube/cube_formats.h"
+#include "io/files/input_file.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
@@ -213,8 +214,8 @@ std::string lower_extension(const fs::path& path) {
 }
 
 Format format_of(const fs::path& path) {
+  require_regular_file(path);
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw core::Error(path, "file not found");
   std::string ext = lower_extension(path);
   if (ext == ".npy") return Format::Npy;
   if (ext == ".pt" || ext == ".pth") return Format::Pt;

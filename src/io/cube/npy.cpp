@@ -6,6 +6,7 @@
 #include "core/error.h"
 #include "io/cube/cube_formats.h"
 #include "io/files/atomic_file.h"
+#include "io/files/input_file.h"
 #include "io/files/little_endian.h"
 
 #if __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
@@ -140,7 +141,7 @@ struct OpenNpy {
 
 void open_npy(const fs::path& path, OpenNpy* npy) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw core::Error(path, "file not found");
+  require_regular_file(path);
   npy->file_size = fs::file_size(path, ec);
   npy->in.open(path, std::ios::binary);
   if (ec || !npy->in) throw core::Error(path, "cannot open the file for reading");

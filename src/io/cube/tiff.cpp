@@ -11,6 +11,7 @@
 #include "io/cube/tiff_open.h"
 #include "io/files/atomic_file.h"
 #include "io/files/byte_count.h"
+#include "io/files/input_file.h"
 
 namespace ddhgs::io {
 namespace fs = std::filesystem;
@@ -239,8 +240,8 @@ void open_for_reading(TiffFile& file, const fs::path& path) {
 }
 
 void require_nonempty(const fs::path& path) {
+  require_regular_file(path);
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw core::Error(path, "file not found");
   if (fs::file_size(path, ec) == 0) throw core::Error(path, "empty file, expected a TIFF image");
 }
 

@@ -13,6 +13,7 @@
 #include "io/cube/pickle_check.h"
 #include "io/cube/zip_check.h"
 #include "io/files/byte_count.h"
+#include "io/files/input_file.h"
 
 namespace ddhgs::io::detail {
 namespace fs = std::filesystem;
@@ -27,7 +28,7 @@ std::string first_line(const char* what) {
 
 void require_zip_magic(const fs::path& path) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw core::Error(path, "file not found");
+  require_regular_file(path);
   if (fs::file_size(path, ec) == 0)
     throw core::Error(path, "empty file, expected a torch.save tensor");
   char magic[2] = {};

@@ -11,6 +11,7 @@
 #include <ios>
 
 #include "core/error.h"
+#include "io/files/input_file.h"
 #include "io/files/stale_files.h"
 
 namespace ddhgs::io {
@@ -162,9 +163,7 @@ void copy_file_atomically(const fs::path& from, const fs::path& to) {
 }
 
 std::string read_file(const fs::path& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw core::Error(path, "file not found");
-  if (fs::is_directory(path, ec)) throw core::Error(path, "is a folder, expected a file");
+  require_regular_file(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw core::Error(path, "cannot open the file for reading");
   std::string bytes;

@@ -10,7 +10,11 @@
 
 #include "core/camera.h"
 #include "core/error.h"
+#include "core/log.h"
+#include "core/number_range.h"
+#include "core/text.h"
 #include "io/files/atomic_file.h"
+#include "io/files/input_file.h"
 #include "io/ply/ply_format.h"
 
 namespace ddhgs::io {
@@ -34,7 +38,7 @@ struct OpenPly {
 
 // Opens the file and parses the header; the file must have a vertex element.
 void open_ply(const fs::path& path, OpenPly& ply) {
-  if (!fs::exists(path)) throw core::Error(path, "file not found");
+  require_regular_file(path);
   ply.in.open(path, std::ios::binary);
   if (!ply.in) throw core::Error(path, "cannot open for reading");
   ply.header = ply::read_header(ply.in, path);
@@ -79,6 +83,22 @@ void add_columns(std::vector<Column>& columns, const std::vector<int>& propertie
     columns.push_back({properties[i], base ? base + i : nullptr, nullptr, stride});
 }
 
+// One number of a header comment line ("comment wavelengths 450 ...",
+// line 1 of them), finite and within core::kMaxFileNumber.
+double comment_number(const fs::path& path, const std::string& word, const std::string& line) {
+  double value = 0;
+  auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
+  const bool whole = end == word.data() + word.size();
+  if (error == std::errc::result_out_of_range && whole)
+    value = HUGE_VAL;
+  else if (error != std::errc() || !whole || std::isnan(value))
+    throw core::Error(path, line + " has a non-number " + core::quoted_value(word));
+  if (!core::renderable_number(value))
+    throw core::Error(path, line + ": " + core::quoted_value(word) + " is out of range (at most " +
+                                core::format_g(core::kMaxFileNumber) + " in magnitude)");
+  return value;
+}
+
 std::vector<double> parse_wavelengths(const fs::path& path, const ply::Header& header) {
   std::vector<double> wavelengths;
   for (const auto& comment : header.comments) {
@@ -87,13 +107,8 @@ std::vector<double> parse_wavelengths(const fs::path& path, const ply::Header& h
     words >> first;
     if (first != kWavelengthsComment) continue;
     std::string word;
-    while (words >> word) {
-      double value = 0;
-      auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
-      if (error != std::errc() || end != word.data() + word.size() || !std::isfinite(value))
-        throw core::Error(path, "'comment wavelengths' has a non-number '" + word + "'");
-      wavelengths.push_back(value);
-    }
+    while (words >> word)
+      wavelengths.push_back(comment_number(path, word, "'comment wavelengths'"));
   }
   return wavelengths;
 }
@@ -109,13 +124,9 @@ torch::Tensor parse_band_basis(const fs::path& path, const ply::Header& header, 
     words >> first;
     if (first != kBasisComment) continue;
     int64_t count = 0;
+    const std::string line = "'comment band_basis' line " + std::to_string(rows + 1);
     while (words >> word) {
-      double value = 0;
-      auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
-      if (error != std::errc() || end != word.data() + word.size() || !std::isfinite(value))
-        throw core::Error(path, "'comment band_basis' line " + std::to_string(rows + 1) +
-                                    " has a non-number '" + word + "'");
-      values.push_back(value);
+      values.push_back(comment_number(path, word, line));
       ++count;
     }
     if (count != channels + 1)
@@ -198,6 +209,11 @@ int GaussianPly::sh_degree() const {
 
 namespace {
 
+// The largest scale_* accepted (a natural logarithm): a Gaussian e^20 = 4.9e8
+// units wide, 50 times the largest scene (core::kMaxSceneExtent), whose
+// covariance stays finite in float32 when projected.
+constexpr double kMaxLogScale = 20;
+
 // Values no renderer can use end the read, naming the file and the
 // property, instead of failing later inside the rasterizer.
 void require_renderable(const fs::path& path, const GaussianPly& ply) {
@@ -208,12 +224,32 @@ void require_renderable(const fs::path& path, const GaussianPly& ply) {
       {&ply.sh_dc, "f_dc_*"}, {&ply.sh_rest, "f_rest_*"}};
   for (const auto& [tensor, name] : all) {
     if (tensor->numel() == 0) continue;
-    const torch::Tensor bad = ~torch::isfinite(*tensor).reshape({tensor->size(0), -1}).all(1);
+    const torch::Tensor rows = tensor->reshape({tensor->size(0), -1});
+    const torch::Tensor bad = ~torch::isfinite(rows).all(1);
     if (bad.any().item<bool>())
       throw core::Error(path, std::string(name) + " of Gaussian " +
                                   std::to_string(bad.nonzero()[0][0].item<int64_t>()) +
                                   " is NaN or infinite");
+    const torch::Tensor large = (rows.abs() > core::kMaxFileNumber).any(1);
+    if (large.any().item<bool>()) {
+      const int64_t g = large.nonzero()[0][0].item<int64_t>();
+      throw core::Error(path, std::string(name) + " of Gaussian " + std::to_string(g) + " is " +
+                                  core::format_g(rows[g].abs().max().item<double>()) +
+                                  " (at most " + core::format_g(core::kMaxFileNumber) +
+                                  " in magnitude)");
+    }
   }
+  // scale_* are logarithms: exp(kMaxLogScale) is far beyond any scene.
+  const torch::Tensor widest_of_each = std::get<0>(ply.log_scales.max(1));  // [G]
+  const double widest = widest_of_each.max().item<double>();
+  if (widest > kMaxLogScale)
+    throw core::Error(path, "scale_* of Gaussian " +
+                                std::to_string(widest_of_each.argmax().item<int64_t>()) + " is " +
+                                core::format_g(widest) + ", a width of " +
+                                core::format_g(std::exp(widest)) +
+                                " units (scale_* are natural "
+                                "logarithms; at most " +
+                                core::format_g(kMaxLogScale) + ")");
   const double far = ply.means.abs().max().item<double>();
   if (far > core::kMaxSceneExtent)
     throw core::Error(path, "a Gaussian lies " + std::to_string(far) +
