@@ -2,6 +2,7 @@
 
 #include "core/error.h"
 #include "io/files/atomic_file.h"
+#include "io/files/input_file.h"
 
 namespace ddhgs::train {
 
@@ -33,6 +34,7 @@ void write_archive(const fs::path& path, torch::serialize::OutputArchive& archiv
 
 void read_archive(const fs::path& path, torch::serialize::InputArchive& archive,
                   const std::string& unreadable) {
+  io::require_regular_file(path);  // LibTorch would wait on a FIFO
   try {
     archive.load_from(path.string());
   } catch (const c10::Error&) {
@@ -50,6 +52,7 @@ void save_checkpoint(const fs::path& path, const TrainState& state) {
   meta["format_version"] = kCheckpointFormatVersion;
   meta["iteration"] = state.iteration;
   meta["active_sh_degree"] = state.gaussians.active_sh_degree;
+  if (!state.model_record.is_null()) meta["model"] = state.model_record;
   archive.write("meta", c10::IValue(meta.dump()));
 
   torch::serialize::OutputArchive gaussians;
@@ -78,22 +81,72 @@ void save_checkpoint(const fs::path& path, const TrainState& state) {
   write_archive(path, archive);
 }
 
-void load_checkpoint(const fs::path& path, TrainState& state,
-                     const model::AdamOptions& adam_options) {
-  if (!fs::exists(path)) throw core::Error(path, "no such checkpoint");
-  torch::serialize::InputArchive archive;
-  read_archive(path, archive, "not a ddhgs checkpoint (unreadable or truncated)");
+CheckpointFile open_checkpoint(const fs::path& path) {
+  CheckpointFile file;
+  file.path = path;
+  read_archive(path, file.archive, "not a ddhgs checkpoint (unreadable or truncated)");
   c10::IValue meta_value;
-  if (!archive.try_read("meta", meta_value) || !meta_value.isString())
+  if (!file.archive.try_read("meta", meta_value) || !meta_value.isString())
     throw core::Error(path, "not a ddhgs checkpoint (no meta record)");
-  nlohmann::json meta = nlohmann::json::parse(meta_value.toStringRef(), nullptr, false);
-  if (!meta.is_object() || !meta.contains("format_version"))
+  file.meta = nlohmann::json::parse(meta_value.toStringRef(), nullptr, false);
+  const nlohmann::json& meta = file.meta;
+  if (!meta.is_object() || !meta.contains("format_version") ||
+      !meta["format_version"].is_number_integer())
     throw core::Error(path, "checkpoint meta record is malformed");
   const int version = meta["format_version"].get<int>();
   if (version != kCheckpointFormatVersion)
     throw core::Error(path, "checkpoint format_version " + std::to_string(version) +
                                 " is not supported by this ddhgs (reads " +
                                 std::to_string(kCheckpointFormatVersion) + ")");
+  return file;
+}
+
+SavedModel saved_model(CheckpointFile& file) {
+  SavedModel saved;
+  saved.record = file.meta.value("model", nlohmann::json());
+  try {
+    torch::serialize::InputArchive gaussians, modules;
+    file.archive.read("gaussians", gaussians);
+    torch::Tensor sh_dc, sh_rest;
+    gaussians.read("sh_dc", sh_dc);
+    gaussians.read("sh_rest", sh_rest);
+    if (sh_dc.dim() != 2 || sh_rest.dim() != 3)
+      throw core::Error(file.path, "checkpoint's SH coefficients are not [G, C] and [G, C, K]");
+    const int64_t rest = sh_rest.size(2);
+    saved.sh_degree = rest == 0 ? 0 : rest == 3 ? 1 : rest == 8 ? 2 : rest == 15 ? 3 : -1;
+    if (saved.sh_degree < 0)
+      throw core::Error(file.path, "checkpoint's sh_rest has " + std::to_string(rest) +
+                                       " coefficients per channel; expected 0, 3, 8 or 15");
+    file.archive.read("modules", modules);
+    saved.modules = modules.keys();
+    saved.bands = sh_dc.size(1);
+    torch::serialize::InputArchive colour;
+    if (modules.try_read("colour_model", colour)) {
+      torch::Tensor basis;
+      colour.read("basis", basis);
+      if (basis.dim() != 2)
+        throw core::Error(file.path, "checkpoint's colour_model basis is not [N, K]");
+      saved.bands = basis.size(0);
+      saved.rank = basis.size(1);
+    }
+  } catch (const c10::Error& e) {
+    throw core::Error(file.path,
+                      std::string("checkpoint is incomplete (") + e.what_without_backtrace() + ")");
+  }
+  return saved;
+}
+
+void load_checkpoint(const fs::path& path, TrainState& state,
+                     const model::AdamOptions& adam_options) {
+  CheckpointFile file = open_checkpoint(path);
+  load_checkpoint(file, state, adam_options);
+}
+
+void load_checkpoint(CheckpointFile& file, TrainState& state,
+                     const model::AdamOptions& adam_options) {
+  const fs::path& path = file.path;
+  torch::serialize::InputArchive& archive = file.archive;
+  const nlohmann::json& meta = file.meta;
   try {
     state.iteration = meta.at("iteration").get<int64_t>();
     RunCounters& c = state.counters;

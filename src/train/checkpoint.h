@@ -47,6 +47,26 @@ struct TrainState {
   model::DensifyStats stats;
   // The caller registers them (same names) before loading.
   std::vector<TrainedModule> modules;
+  // What shapes the model beyond its tensors (train/model_shape.h), saved in
+  // the meta record as "model"; null when unknown.
+  nlohmann::json model_record;
+};
+
+// A checkpoint's model as its tensors give it, with its meta record "model"
+// (null in checkpoints of older ddhgs versions).
+struct SavedModel {
+  int64_t bands = 0;                 // N
+  int64_t rank = 0;                  // latent channels K; 0: one SH set per band
+  int sh_degree = 0;                 // of sh_rest
+  std::vector<std::string> modules;  // the trained modules' names
+  nlohmann::json record;
+};
+
+// A checkpoint read into memory, its meta record checked (format_version).
+struct CheckpointFile {
+  std::filesystem::path path;
+  torch::serialize::InputArchive archive;
+  nlohmann::json meta;
 };
 
 // Registers the module's parameters as Adam groups "<name>/<parameter>".
@@ -64,10 +84,19 @@ void read_archive(const std::filesystem::path& path, torch::serialize::InputArch
 
 void save_checkpoint(const std::filesystem::path& path, const TrainState& state);
 
+// Throws core::Error naming the file on a missing or malformed file, or one
+// of another format_version.
+CheckpointFile open_checkpoint(const std::filesystem::path& path);
+
+// The shapes of the checkpoint's model, read before anything is built from it.
+SavedModel saved_model(CheckpointFile& file);
+
 // Fills state from the file. The Adam groups are created from the saved
 // Gaussians and the registered modules, with the saved learning rates and
 // moments; modules must be registered (same names) beforehand. Throws core::Error naming the file
 // on a missing or malformed file, or one of another format_version.
+void load_checkpoint(CheckpointFile& file, TrainState& state,
+                     const model::AdamOptions& adam_options);
 void load_checkpoint(const std::filesystem::path& path, TrainState& state,
                      const model::AdamOptions& adam_options);
 

@@ -271,7 +271,7 @@ std::string percent(double share) {
 }  // namespace
 
 model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank,
-                                        int subspace_from_bands, bool resuming) {
+                                        int subspace_from_bands) {
   const int64_t n = scene.bands();
   if (spectral_rank < 0 && n < subspace_from_bands) {
     core::log_info("colour model: one SH set per band (" + std::to_string(n) +
@@ -302,15 +302,27 @@ model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_ran
   if (k < 0) {
     k = std::clamp<int64_t>(core::whitened_signal_rank(sample.spectra, sample.noise_sigma), 1, n);
   }
-  const std::string source = resuming
-                                 ? "basis and mean from the checkpoint"
-                                 : "a basis from the principal components of " +
-                                       std::to_string(sample.spectra.size(0)) + " pixels of " +
-                                       std::to_string(sample.views) + " training views, holding " +
-                                       percent(pca.kept(k)) + " % of their variance";
   core::log_info("colour model: " + std::to_string(k) + " latent channels for " +
-                 std::to_string(n) + " bands (" + source + ")");
+                 std::to_string(n) + " bands (a basis from the principal components of " +
+                 std::to_string(sample.spectra.size(0)) + " pixels of " +
+                 std::to_string(sample.views) + " training views, holding " + percent(pca.kept(k)) +
+                 " % of their variance)");
   return model::latent_from_pca(pca, k);
+}
+
+model::ColourModel resumed_colour_model(const io::Scene& scene, int64_t rank) {
+  const int64_t n = scene.bands();
+  if (rank == 0) {
+    core::log_info("colour model: one SH set per band (" + std::to_string(n) +
+                   " bands, from the checkpoint)");
+    return {};
+  }
+  core::log_info("colour model: " + std::to_string(rank) + " latent channels for " +
+                 std::to_string(n) + " bands (basis and mean from the checkpoint)");
+  model::ColourModel colour;
+  colour.basis = torch::zeros({n, rank});
+  colour.mean = torch::zeros({n});
+  return colour;
 }
 
 }  // namespace ddhgs::train

@@ -48,10 +48,14 @@ model::Gaussians initialise_gaussians(const io::Scene& scene, const InitOptions&
 // core::whitened_signal_rank, when the scene has at least
 // subspace_from_bands bands, else per band) from the PCA of up to 8
 // training views' pixels (io::sample_spectra). Throws naming the scene when
-// the rank is above its band count. resuming: the checkpoint replaces the
-// basis and mean (only the shape is used), and the log says so.
+// the rank is above its band count.
 model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_rank,
-                                        int subspace_from_bands = 0, bool resuming = false);
+                                        int subspace_from_bands = 0);
+
+// The colour model of a checkpoint of rank `rank` (model::ColourModel::rank;
+// 0 per band) for the scene's bands, to load its basis and mean into: zeros
+// of the checkpoint's shapes. Logs what it is and where it comes from.
+model::ColourModel resumed_colour_model(const io::Scene& scene, int64_t rank);
 
 // 3DGS's scene extent: 1.1 x the largest distance of a camera centre from
 // their mean (scene units). Scales position learning rates and densification.

@@ -24,6 +24,7 @@
 #include "train/band_draw.h"
 #include "train/config.h"
 #include "train/init.h"
+#include "train/model_shape.h"
 #include "train/novel_views.h"
 #include "train/run_checks.h"
 
@@ -124,7 +125,8 @@ void Trainer::load_scene() {
   core::require(!scene_->train.empty(), data, "the dataset has no training views");
   check_scene_before_training(*scene_);
   background_ = background(config_.model, scene_->bands());
-  if (config_.model.background_from_views) {
+  // A resumed run's learned background comes from its checkpoint.
+  if (config_.model.background_from_views && !(resuming_ && config_.model.learn_background)) {
     // Only a masked capture's backdrop: a field's or a room's border is
     // scenery, which the Gaussians draw.
     const io::BorderScan border = io::scan_border(*scene_, scene_->train);
@@ -143,12 +145,12 @@ void Trainer::load_scene() {
   const LossConfig& loss = config_.loss;
   losses_ = baseline_losses(loss.l1, loss.dssim);
   losses_.push_back(spectral_term(loss.spectral, loss.spectral_options));
-  build_modules();
 }
 
 void Trainer::build_modules() {
-  colour_ = initial_colour_model(*scene_, config_.model.spectral_rank,
-                                 config_.model.subspace_from_bands, resuming_);
+  colour_ = resuming_ ? resumed_colour_model(*scene_, resumed_rank_)
+                      : initial_colour_model(*scene_, config_.model.spectral_rank,
+                                             config_.model.subspace_from_bands);
   if (colour_.latent()) {
     colour_module_ = std::make_shared<torch::nn::Module>();
     colour_.basis = colour_module_->register_parameter("basis", colour_.basis.clone());
@@ -288,6 +290,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   RunWriter::check(run, replace, inputs);  // before the work of loading
   std::unique_ptr<Trainer> t(new Trainer(std::move(parsed), run));
   t->load_scene();  // before touching the output, so bad input leaves it intact
+  t->build_modules();
   t->initialise();
   // Every file the run will read, resolved before anything is moved: a cube
   // inside the folder being replaced would go with it.
@@ -340,20 +343,17 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
   t->writer_ = std::move(writer);
   t->resuming_ = true;
   t->load_scene();
+  // Before anything is built or logged: the config must build the model the
+  // checkpoint holds.
+  CheckpointFile checkpoint = open_checkpoint(run.checkpoint());
+  const SavedModel saved = saved_model(checkpoint);
+  check_resumable(saved, t->config_, *t->scene_, run.checkpoint(), run.config());
+  t->resumed_rank_ = saved.rank;
+  t->build_modules();
   model::AdamOptions options;
   options.eps = t->config_.optim.adam_eps;
-  load_checkpoint(run.checkpoint(), t->state_, options);
+  load_checkpoint(checkpoint, t->state_, options);
   t->attach_colour();
-  if (t->state_.gaussians.channels() != t->colour_.channels(t->scene_->bands()))
-    throw core::Error(run.checkpoint(),
-                      "has " + std::to_string(t->state_.gaussians.channels()) +
-                          " colour channels per Gaussian but the run's colour "
-                          "model has " +
-                          std::to_string(t->colour_.channels(t->scene_->bands())));
-  if (t->state_.gaussians.bands() != t->scene_->bands())
-    throw core::Error(run.checkpoint(), "has " + std::to_string(t->state_.gaussians.bands()) +
-                                            " bands but the dataset loads " +
-                                            std::to_string(t->scene_->bands()));
   if (iterations > 0 && t->state_.iteration > trained) {
     // Past the Gaussian iterations (the denoiser was being fine-tuned): go
     // back to their end; the fine-tuning runs again after the new total.
@@ -364,7 +364,9 @@ std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations
     auto modules = t->state_.modules;
     t->state_ = TrainState();
     t->state_.modules = modules;
-    load_checkpoint(run.checkpoint(), t->state_, options);
+    CheckpointFile end = open_checkpoint(run.checkpoint());
+    check_resumable(saved_model(end), t->config_, *t->scene_, run.checkpoint(), run.config());
+    load_checkpoint(end, t->state_, options);
     t->attach_colour();
   } else if (iterations > 0) {
     t->writer_->resumed(t->state_.iteration, io::read_file(run.config()));
@@ -691,6 +693,7 @@ std::map<int, torch::Tensor> Trainer::pair_renders() {
         ~Restore() { core::set_log_level(level); }
       } restore{level};
       t->load_scene();
+      t->build_modules();
       t->initialise();
     }
     const int64_t n = std::min(steps, aux.iterations);
@@ -822,6 +825,7 @@ json Trainer::distill_step(int64_t iteration) {
 
 void Trainer::save(bool numbered) {
   require_finite_parameters(state_, run_.root);
+  state_.model_record = model_record(config_, *scene_);
   save_checkpoint(run_.checkpoint(), state_);
   if (writer_) writer_->saved(state_.iteration);
   if (numbered) {

@@ -59,7 +59,7 @@ class Trainer {
   // Loss terms; later components append their own before run().
   std::vector<LossTerm>& losses() { return losses_; }
   // Adds a network trained beside the Gaussians (train/checkpoint.h
-  // TrainedModule). Call while the trainer is built (load_scene), before the
+  // TrainedModule). Call while the trainer is built (build_modules), before the
   // optimizer is created or a checkpoint is read.
   void add_module(const std::string& name, std::shared_ptr<torch::nn::Module> module, double lr);
   // The wavelength encoder's output per band [N, width]
@@ -77,7 +77,8 @@ class Trainer {
  private:
   Trainer(RunConfig config, RunPaths run);
   void load_scene();
-  // The networks beside the Gaussians, from the config (both start and resume).
+  // The colour model and the networks beside the Gaussians, from the config
+  // (both start and resume; a resumed run checks its checkpoint first).
   void build_modules();
   void create_optimizer();
   // Fresh Gaussians from the loaded scene (init section, the run's seed),
@@ -189,6 +190,7 @@ class Trainer {
   nlohmann::json denoiser_pairs_psnr_;              // mean dB of the pairs; null until made
   bool distilling_ = false;                         // whether to distil is decided
   bool resuming_ = false;                           // made by resume(): the checkpoint's state
+  int64_t resumed_rank_ = 0;  // the checkpoint's colour model (ColourModel::rank)
   // An auxiliary model of pair_renders(): quiet about the scene; its training
   // views leave held_out_ out, and its training cameras are turned so that
   // their images move by perturb_px_ pixels.

@@ -85,6 +85,45 @@ TEST(Checkpoint, RoundTripRestoresEverything) {
   EXPECT_EQ(files, 1);
 }
 
+TEST(Checkpoint, SavedModelReadsTheShapesAndTheRecord) {
+  auto dir = test::temp_dir("ckpt_saved_model");
+  // Per band: 5 bands, degree 3, one module, no record (an older checkpoint).
+  auto s = make_state();
+  s.modules.push_back({"background", std::make_shared<torch::nn::LinearImpl>(3, 2), 1e-3});
+  train::add_module_groups(s.adam, s.modules.back());
+  train::save_checkpoint(dir / "per_band.pt", s);
+  train::CheckpointFile file = train::open_checkpoint(dir / "per_band.pt");
+  train::SavedModel saved = train::saved_model(file);
+  EXPECT_EQ(saved.bands, 5);
+  EXPECT_EQ(saved.rank, 0);
+  EXPECT_EQ(saved.sh_degree, 3);
+  EXPECT_EQ(saved.modules, (std::vector<std::string>{"background"}));
+  EXPECT_TRUE(saved.record.is_null());
+  // The opened file loads as the path does.
+  train::TrainState r;
+  r.modules.push_back({"background", std::make_shared<torch::nn::LinearImpl>(3, 2), 0.0});
+  train::load_checkpoint(file, r, {});
+  EXPECT_EQ(r.iteration, 123);
+
+  // Latent: 2 channels of degree 1 over a basis of 7 bands, with a record.
+  auto l = make_state();
+  l.gaussians.sh_dc = torch::randn({4, 2});
+  l.gaussians.sh_rest = torch::randn({4, 2, 3});
+  auto colour = std::make_shared<torch::nn::Module>();
+  colour->register_parameter("basis", torch::randn({7, 2}));
+  colour->register_parameter("mean", torch::randn({7}));
+  l.modules = {{"colour_model", colour, 1e-3}};
+  l.model_record = {{"settings", {{"model.spectral_rank", 2}}}};
+  train::save_checkpoint(dir / "latent.pt", l);
+  train::CheckpointFile latent = train::open_checkpoint(dir / "latent.pt");
+  saved = train::saved_model(latent);
+  EXPECT_EQ(saved.bands, 7);
+  EXPECT_EQ(saved.rank, 2);
+  EXPECT_EQ(saved.sh_degree, 1);
+  EXPECT_EQ(saved.modules, (std::vector<std::string>{"colour_model"}));
+  EXPECT_EQ(saved.record, l.model_record);
+}
+
 TEST(Checkpoint, RejectsMissingTruncatedAndForeignFiles) {
   auto dir = test::temp_dir("ckpt_bad");
   train::TrainState r;
