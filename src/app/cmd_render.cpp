@@ -11,9 +11,11 @@
 #include "core/band_map.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 #include "eval/denoised_eval.h"
 #include "eval/evaluate.h"
 #include "eval/render_frames.h"
+#include "io/files/atomic_file.h"
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
 #include "io/response/response_csv.h"
@@ -124,8 +126,8 @@ Action setup(CLI::App& parent) {
       }
       for (size_t c = 0; c < response.channels.size(); ++c)
         if (map.captured[c] < 0.99)
-          core::log_warn("response '" + response.channels[c] +
-                         "': " + std::to_string(int(std::lround(100 * (1 - map.captured[c])))) +
+          core::log_warn("response " + core::quoted_value(response.channels[c]) + ": " +
+                         std::to_string(int(std::lround(100 * (1 - map.captured[c])))) +
                          " % of it lies outside the model's bands and is left out");
       // Cubes hold channels by increasing wavelength, as captured cubes do.
       std::vector<size_t> order(map.centres_nm.size());
@@ -142,10 +144,15 @@ Action setup(CLI::App& parent) {
       }
       for (size_t i = 1; i < order.size(); ++i)
         core::require(options.wavelengths_nm[i] > options.wavelengths_nm[i - 1], args->response,
-                      "two channels have the same centre wavelength");
+                      "channels " + core::quoted_value(response.channels[order[i - 1]]) + " and " +
+                          core::quoted_value(response.channels[order[i]]) +
+                          " have the same centre wavelength (" +
+                          core::format_g(options.wavelengths_nm[i]) +
+                          " nm); a rendered cube holds its channels by increasing wavelength");
       options.band_map = map.map.index_select(0, torch::tensor(rows));
       core::log_info("channels of the rendered cubes, by centre wavelength: " + listed);
-      folder_suffix = "_" + fs::path(args->response).stem().string();
+      // Its own prefix: a file named ndvi.csv must not render into --index ndvi's folder.
+      folder_suffix = "_response_" + fs::path(args->response).stem().string();
     }
     if (!args->index.empty()) {
       options.index = eval::find_vegetation_index(args->index, "--index");
@@ -195,11 +202,20 @@ Action setup(CLI::App& parent) {
     core::require(!frames.empty(), scene.root, "the " + what + " split has no views to render");
     io::FolderLock lock(run.root, "render");
     int files = 0;
-    io::write_into_folder_atomically(
-        {out_dir, io::OutputKind::Renders, true, {run.root, scene.root}, ""},
-        [&](const fs::path& tmp) {
-          files = eval::render_frames(scene, run.gaussians, run.background, frames, options, tmp);
-        });
+    io::OutputRequest request{out_dir, io::OutputKind::Renders, true, {run.root, scene.root}, ""};
+    request.superseded = eval::superseded_files(frames, options);
+    const auto build = [&](const fs::path& tmp) {
+      files = eval::render_frames(scene, run.gaussians, run.background, frames, options, tmp);
+    };
+    // Frames join an earlier render's only when they show the same channels.
+    std::error_code ec;
+    const fs::path record = out_dir / "channels.json";
+    const bool same_channels = fs::is_regular_file(record, ec) &&
+                               io::read_file(record) == eval::channels_record(scene, options);
+    if (same_channels || !fs::exists(out_dir, ec))
+      io::write_into_folder_atomically(request, build);
+    else
+      io::write_folder_atomically(request, build);
     std::cout << "rendered " << frames.size() << " frames (" << what << "): " << files
               << " files in " << out_dir.string() << "\n";
     return 0;

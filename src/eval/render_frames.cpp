@@ -204,6 +204,7 @@ int render_index_frames(const io::Scene& scene, const model::Gaussians& model,
     for (const Frame& frame : frames)
       if (frame.view >= 0 && !scene.views[size_t(frame.view)].bands.empty())
         index_views(scene, frame.view, index, map);
+  io::write_file_atomically(out_dir / "channels.json", channels_record(scene, options));
   const std::string& label = index.name;
   nlohmann::json summary = {{"index", label},
                             {"a", index.a.name},
@@ -266,6 +267,29 @@ int render_index_frames(const io::Scene& scene, const model::Gaussians& model,
 
 }  // namespace
 
+std::string channels_record(const io::Scene& scene, const RenderOptions& options) {
+  const bool mapped = options.band_map.defined() && !options.index;
+  nlohmann::json record = {
+      {"wavelengths_nm", mapped ? options.wavelengths_nm : scene.wavelengths_nm}};
+  if (options.index) record["index"] = options.index->name;
+  return record.dump(2) + "\n";
+}
+
+std::vector<std::string> superseded_files(const std::vector<Frame>& frames,
+                                          const RenderOptions& options) {
+  std::vector<std::string> names;
+  if (options.index) return names;  // index maps have no cubes
+  for (const Frame& frame : frames) {
+    if (options.format == OutputFormat::Npy) {
+      names.push_back(frame.name + ".hdr");
+      names.push_back(frame.name + ".img");
+    } else if (options.format == OutputFormat::Envi) {
+      names.push_back(frame.name + ".npy");
+    }
+  }
+  return names;
+}
+
 OutputFormat parse_output_format(const std::string& name) {
   if (name == "png") return OutputFormat::Png;
   if (name == "npy") return OutputFormat::Npy;
@@ -302,11 +326,14 @@ int render_frames(const io::Scene& scene, const model::Gaussians& gaussians,
   const bool mapped = options.band_map.defined();
   const std::vector<double>& wavelengths = mapped ? options.wavelengths_nm : scene.wavelengths_nm;
   model::Gaussians model = gaussians;  // handles to the same tensors
-  if (options.index) return render_index_frames(scene, model, background, frames, options, out_dir);
+  if (options.index)
+    return 1 + render_index_frames(scene, model, background, frames, options, out_dir);
   if (mapped) model.colour = gaussians.colour.mapped(options.band_map);
   const std::string label = options.bands.label;
   const std::vector<std::optional<BandSelection>> own = own_comparisons(scene, frames, options);
-  int written = 0;
+  // After every check that can refuse: a refused render writes nothing.
+  io::write_file_atomically(out_dir / "channels.json", channels_record(scene, options));
+  int written = 1;  // channels.json
   core::ProgressBar bar("render", int64_t(frames.size()));
   for (size_t i = 0; i < frames.size(); ++i) {
     const Frame& frame = frames[i];

@@ -57,6 +57,20 @@ std::vector<Frame> view_frames(const io::Scene& scene, const std::vector<int>& v
 // Frames orbit_000, orbit_001, ... along eval::orbit_cameras of the training views.
 std::vector<Frame> orbit_frames(const io::Scene& scene, int count);
 
+// What a render folder's files show: its channels' wavelengths (the scene's
+// bands, or those of options.band_map) and the index, if any, as the JSON
+// text render_frames writes into channels.json. A render whose record
+// differs from the folder's replaces the folder: its frames would otherwise
+// sit beside earlier ones of another band count.
+std::string channels_record(const io::Scene& scene, const RenderOptions& options);
+
+// The files of an earlier render of the same channels that rendering frames
+// with options makes stale: each frame's cube in the other format (NAME.npy
+// beside a new NAME.hdr + NAME.img, or the reverse). For
+// io::OutputRequest::superseded.
+std::vector<std::string> superseded_files(const std::vector<Frame>& frames,
+                                          const RenderOptions& options);
+
 // Writes, per frame, into out_dir (an existing folder):
 //   NAME.npy | NAME.hdr + NAME.img      the cube (npy / envi formats)
 //   NAME_LABEL.png                      picture (LABEL: rgb, band42, 750-768nm)
@@ -68,6 +82,7 @@ std::vector<Frame> orbit_frames(const io::Scene& scene, int count);
 //   NAME_LABEL_compare.png              truth | render | |error| (diff, frames with truth)
 //   LABEL.json                          per frame: mean index, and the mean absolute
 //                                       error against the truth's index (diff)
+// and channels.json (channels_record).
 // Ground truth is the clean view when the scene has one, else the stored view.
 // A view that holds some of the bands (a band-per-view scene) is compared on
 // them: its compare and diff pictures show the mean of its own bands, or of

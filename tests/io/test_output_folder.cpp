@@ -13,6 +13,7 @@
 #include "io/files/atomic_file.h"
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
+#include "io/files/output_marker.h"
 #include "io/files/stale_files.h"
 #include "support/test_support.h"
 
@@ -164,6 +165,31 @@ TEST(OutputFolder, NeverTouchesTheCurrentDirectoryHomeOrAMountPoint) {
   }
   // The real surroundings: this test's temporary folder is none of them.
   EXPECT_EQ(protected_reason(dir / "cwd", {}), "");
+}
+
+TEST(OutputFolder, WriteIntoRemovesWhatTheNewFilesSupersede) {
+  const fs::path dir = test::temp_dir("output_superseded");
+  const fs::path out = dir / "renders";
+  OutputRequest request{out, OutputKind::Renders, true, {}, ""};
+  write_into_folder_atomically(request, [](const fs::path& tmp) {
+    write_file_atomically(tmp / "v1.npy", "cube");
+    write_file_atomically(tmp / "v2.npy", "cube");
+    write_file_atomically(tmp / "v1_rgb.png", "rgb");
+  });
+  write_file_atomically(out / "notes.npy", "the user's");  // not ddhgs's
+  // An ENVI render of v1 makes its .npy stale; v2 (not rendered now), the
+  // picture and the user's file stay, and a name both superseded and
+  // written again is kept.
+  request.superseded = {"v1.npy", "notes.npy", "v1.hdr", "absent.npy"};
+  write_into_folder_atomically(request, [](const fs::path& tmp) {
+    write_file_atomically(tmp / "v1.hdr", "header");
+    write_file_atomically(tmp / "v1.img", "samples");
+  });
+  EXPECT_EQ(listing(out), (std::vector<std::string>{".ddhgs-output", "notes.npy", "v1.hdr",
+                                                    "v1.img", "v1_rgb.png", "v2.npy"}));
+  // The marker no longer lists the removed file: only notes.npy is foreign.
+  EXPECT_EQ(foreign_entries(out, *read_output_marker(out)),
+            (std::vector<std::string>{"notes.npy"}));
 }
 
 TEST(OutputFolder, WriteIntoAddsFilesAndKeepsTheOthers) {

@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 
 #include "core/error.h"
@@ -194,6 +195,27 @@ fs::path build_apart(const fs::path& folder, OutputKind kind,
   return tmp;
 }
 
+// Removes the names of `superseded` that ddhgs wrote into folder (its
+// marker lists them) and that the new files did not replace, and drops them
+// from the marker.
+void remove_superseded(const fs::path& folder, const std::vector<std::string>& superseded,
+                       const std::vector<std::string>& added, OutputMarker& marker) {
+  const auto has = [](const std::vector<std::string>& names, const std::string& name) {
+    return std::find(names.begin(), names.end(), name) != names.end();
+  };
+  bool changed = false;
+  for (const std::string& name : superseded) {
+    if (has(added, name) || !has(marker.entries, name)) continue;
+    std::error_code ec;
+    const fs::path path = folder / name;
+    if (!fs::is_regular_file(fs::symlink_status(path, ec)) || !fs::remove(path, ec)) continue;
+    marker.entries.erase(std::remove(marker.entries.begin(), marker.entries.end(), name),
+                         marker.entries.end());
+    changed = true;
+  }
+  if (changed) write_output_marker(folder, marker);
+}
+
 }  // namespace
 
 fs::path write_folder_atomically(const OutputRequest& request,
@@ -251,7 +273,8 @@ fs::path write_into_folder_atomically(const OutputRequest& request,
     }
   }
   OutputMarker marker = *read_output_marker(folder);
-  for (const std::string& name : folder_entries(tmp)) marker.entries.push_back(name);
+  const std::vector<std::string> added = folder_entries(tmp);
+  for (const std::string& name : added) marker.entries.push_back(name);
   write_output_marker(folder, marker);
   for (const auto& entry : fs::directory_iterator(tmp)) {
     if (entry.path().filename() == kOutputMarker) continue;
@@ -263,6 +286,7 @@ fs::path write_into_folder_atomically(const OutputRequest& request,
     }
   }
   fs::remove_all(tmp, ec);
+  remove_superseded(folder, request.superseded, added, marker);
   return folder;
 }
 

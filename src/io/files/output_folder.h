@@ -45,6 +45,10 @@ struct OutputRequest {
   // it writes, recorded in its marker as ddhgs's. Outputs built apart list
   // what their build wrote.
   std::vector<std::string> entries = {};
+  // For write_into_folder_atomically: names in the folder that the new files
+  // make stale (a frame's cube in another format), removed with the new
+  // files' arrival when ddhgs wrote them.
+  std::vector<std::string> superseded = {};
 };
 
 enum class OutputState {
@@ -94,8 +98,9 @@ std::filesystem::path write_folder_atomically(
 // Like write_folder_atomically, but adds the files build(tmp) writes to the
 // folder instead of replacing it (an earlier output's other files stay): the
 // files are built apart and then renamed in, replacing files of the same
-// name, so a failed build adds nothing. For outputs several commands write
-// into (renders of several band selections, evaluations of several splits).
+// name, so a failed build adds nothing; then request.superseded go. For
+// outputs several commands write into (renders of several band selections,
+// evaluations of several splits).
 std::filesystem::path write_into_folder_atomically(
     const OutputRequest& request,
     const std::function<void(const std::filesystem::path& tmp)>& build);
