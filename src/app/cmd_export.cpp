@@ -9,6 +9,7 @@
 #include "app/registry.h"
 #include "app/trained_run.h"
 #include "core/error.h"
+#include "core/text.h"
 #include "eval/rgb_export.h"
 #include "io/files/output_file.h"
 #include "io/ply/ply.h"
@@ -33,7 +34,8 @@ std::vector<double> parse_numbers(const std::string& text, const std::string& op
                                   size_t expected) {
   std::vector<double> values = parse_number_list(text, option);
   core::require(values.size() == expected, option + ": expected " + std::to_string(expected) +
-                                               " comma-separated numbers, got '" + text + "'");
+                                               " comma-separated numbers, got " +
+                                               core::quoted_value(text));
   return values;
 }
 

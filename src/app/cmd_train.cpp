@@ -8,6 +8,7 @@
 #include "app/registry.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 #include "train/config.h"
 #include "train/trainer.h"
 
@@ -51,7 +52,8 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
   if (given("--band-range")) {
     auto colon = a.band_range.find(':');
     if (colon == std::string::npos)
-      throw core::Error("--band-range", "expected MIN:MAX in nm, got '" + a.band_range + "'");
+      throw core::Error("--band-range",
+                        "expected MIN:MAX in nm, got " + core::quoted_value(a.band_range));
     try {
       size_t lo_end = 0, hi_end = 0;
       const double lo = std::stod(a.band_range.substr(0, colon), &lo_end);
@@ -61,7 +63,8 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
       config["data"]["band_min_nm"] = lo;
       config["data"]["band_max_nm"] = hi;
     } catch (const std::exception&) {
-      throw core::Error("--band-range", "expected MIN:MAX in nm, got '" + a.band_range + "'");
+      throw core::Error("--band-range",
+                        "expected MIN:MAX in nm, got " + core::quoted_value(a.band_range));
     }
     const double lo = config["data"]["band_min_nm"], hi = config["data"]["band_max_nm"];
     if (!(lo >= 0 && hi <= 1e9 && lo <= hi))

@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/text.h"
 
 namespace ddhgs::app {
 
@@ -20,7 +21,7 @@ std::vector<double> parse_number_list(const std::string& text, const std::string
     }
     if (used == 0 || item.find_first_not_of(' ', used) != std::string::npos ||
         !std::isfinite(value))
-      throw core::Error(option + ": '" + item + "' is not a number");
+      throw core::Error(option + ": " + core::quoted_value(item) + " is not a number");
     values.push_back(value);
   }
   return values;

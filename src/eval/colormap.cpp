@@ -4,6 +4,7 @@
 #include <array>
 
 #include "core/error.h"
+#include "core/text.h"
 
 namespace ddhgs::eval {
 namespace {
@@ -52,7 +53,7 @@ std::array<double, 3> rdylgn(double v) {
 Colormap parse_colormap(const std::string& name) {
   if (name == "gray" || name == "grey") return Colormap::Gray;
   if (name == "viridis") return Colormap::Viridis;
-  throw core::Error("--colormap: expected gray or viridis, got '" + name + "'");
+  throw core::Error("--colormap: expected gray or viridis, got " + core::quoted_value(name));
 }
 
 std::array<double, 3> colormap_rgb(Colormap map, double value) {

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/tensor_values.h"
+#include "core/text.h"
 #include "io/files/atomic_file.h"
 #include "io/scene/backdrop.h"
 
@@ -170,7 +171,7 @@ std::vector<int> split_views(const io::Scene& scene, const std::string& split) {
     for (size_t i = 0; i < all.size(); ++i) all[i] = int(i);
     return all;
   }
-  throw core::Error("--split: expected test, train or all, got '" + split + "'");
+  throw core::Error("--split: expected test, train or all, got " + core::quoted_value(split));
 }
 
 Timing time_renders(const io::Scene& scene, const model::Gaussians& gaussians,

@@ -6,6 +6,7 @@
 #include "core/colour.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 
 namespace ddhgs::eval {
 namespace {
@@ -37,8 +38,8 @@ BandSelection select_bands(const std::string& band_index, const std::string& ban
       used = 0;
     }
     core::require(used == band_index.size() && index >= 0 && index < n,
-                  "--band: expected a band index in 0.." + std::to_string(n - 1) + ", got '" +
-                      band_index + "'");
+                  "--band: expected a band index in 0.." + std::to_string(n - 1) + ", got " +
+                      core::quoted_value(band_index));
     s.pseudo_rgb = false;
     s.first = s.last = index;
     s.label = "band" + std::to_string(index);
@@ -48,8 +49,9 @@ BandSelection select_bands(const std::string& band_index, const std::string& ban
   double lo = 0, hi = 0;
   char colon = 0, extra = 0;
   int fields = std::sscanf(band_range_nm.c_str(), "%lf %c %lf %c", &lo, &colon, &hi, &extra);
-  core::require(fields == 3 && colon == ':' && lo <= hi,
-                "--bands: expected MIN:MAX in nm (e.g. 750:768), got '" + band_range_nm + "'");
+  core::require(
+      fields == 3 && colon == ':' && lo <= hi,
+      "--bands: expected MIN:MAX in nm (e.g. 750:768), got " + core::quoted_value(band_range_nm));
   s.first = n;
   s.last = -1;
   for (int64_t b = 0; b < n; ++b)

@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 #include "eval/orbit.h"
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
@@ -294,7 +295,7 @@ OutputFormat parse_output_format(const std::string& name) {
   if (name == "png") return OutputFormat::Png;
   if (name == "npy") return OutputFormat::Npy;
   if (name == "envi") return OutputFormat::Envi;
-  throw core::Error("--format: expected npy, envi or png, got '" + name + "'");
+  throw core::Error("--format: expected npy, envi or png, got " + core::quoted_value(name));
 }
 
 std::vector<Frame> view_frames(const io::Scene& scene, const std::vector<int>& views) {

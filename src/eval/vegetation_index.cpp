@@ -5,6 +5,7 @@
 #include "core/band_map.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 
 namespace ddhgs::eval {
 
@@ -51,7 +52,8 @@ const VegetationIndex& find_vegetation_index(const std::string& name, const std:
     if (index.name == name) return index;
     names += (names.empty() ? "" : ", ") + index.name;
   }
-  throw core::Error(option + ": unknown index '" + name + "' (one of " + names + ")");
+  throw core::Error(option + ": unknown index " + core::quoted_value(name) + " (one of " + names +
+                    ")");
 }
 
 torch::Tensor index_band_map(const VegetationIndex& index,

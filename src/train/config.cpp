@@ -3,6 +3,7 @@
 #include <set>
 
 #include "core/error.h"
+#include "core/text.h"
 #include "train/preset_lookup.h"
 #include "train/schedule.h"
 
@@ -260,7 +261,8 @@ void set_key(json& config, const std::string& key_path, const std::string& value
   } catch (const json::parse_error&) {
     parsed = value;
   } catch (const json::out_of_range&) {  // "1e999": a number no double holds
-    throw core::Error(source, "key '" + key_path + "' is " + value + ", too large a number");
+    throw core::Error(
+        source, "key '" + key_path + "' is " + core::quoted_value(value) + ", too large a number");
   }
   const json* s = &schema();
   json* target = &config;
@@ -285,7 +287,7 @@ void set_key(json& config, const std::string& key_path, const std::string& value
 void apply_assignment(json& config, const std::string& assignment) {
   size_t eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw core::Error("--set", "expected key.path=value, got '" + assignment + "'");
+    throw core::Error("--set", "expected key.path=value, got " + core::quoted_value(assignment));
   set_key(config, assignment.substr(0, eq), assignment.substr(eq + 1));
 }
 
