@@ -5,26 +5,17 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <sstream>
 
 #include "io/files/atomic_file.h"
+#include "reliability/cli_support.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
 namespace {
 namespace fs = std::filesystem;
 
-int ddhgs(const std::string& args, std::string* out) {
-  return test::run_command(test::ddhgs_binary() + " " + args, out);
-}
-
-std::vector<std::string> error_lines(const std::string& text) {
-  std::vector<std::string> found;
-  std::istringstream lines(text);
-  for (std::string line; std::getline(lines, line);)
-    if (line.rfind("error: ", 0) == 0) found.push_back(line);
-  return found;
-}
+using test::ddhgs;
+using test::error_lines;
 
 std::vector<std::string> listing(const fs::path& dir) {
   std::vector<std::string> names;
@@ -108,7 +99,7 @@ TEST_F(RenderOutputs, ResponseRendersHaveAFolderOfTheirOwn) {
 }
 
 TEST_F(RenderOutputs, EmptyAndMalformedValuesEndInOneLine) {
-  for (const char* flag : {"--wavelengths", "--index", "--response", "--band", "--split"})
+  for (const char* flag : {"--wavelengths", "--index", "--response", "--band", "--data"})
     EXPECT_EQ(
         render_error(std::string(flag) + " ''"),
         "error: " + std::string(flag) + ": an empty value (give one, or leave the option out)");

@@ -5,27 +5,17 @@
 
 #include <nlohmann/json.hpp>
 
-#include <sstream>
-
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
+#include "reliability/cli_support.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
 namespace {
 namespace fs = std::filesystem;
 
-int ddhgs(const std::string& args, std::string* out) {
-  return test::run_command(test::ddhgs_binary() + " " + args, out);
-}
-
-std::vector<std::string> error_lines(const std::string& text) {
-  std::vector<std::string> found;
-  std::istringstream lines(text);
-  for (std::string line; std::getline(lines, line);)
-    if (line.rfind("error: ", 0) == 0) found.push_back(line);
-  return found;
-}
+using test::ddhgs;
+using test::error_lines;
 
 class ResumeSettings : public ::testing::Test {
  protected:

@@ -303,7 +303,9 @@ TEST_F(EvalScene, RendersCubesPicturesAndComparisons) {
   options.diff = true;
   int files =
       render_frames(*scene, gaussians, background, view_frames(*scene, scene->test), options, out);
-  EXPECT_EQ(files, 2 * 4);
+  EXPECT_EQ(files, 2 * 4 + 1);  // and channels.json: the scene's wavelengths
+  EXPECT_EQ(nlohmann::json::parse(io::read_file(out / "channels.json"))["wavelengths_nm"],
+            nlohmann::json(kWavelengths));
   io::Cube cube = io::read_cube(out / "v1.npy");
   torch::Tensor expected =
       model::render_gaussians(gaussians, scene->views[1].camera, background).image;
@@ -326,7 +328,7 @@ TEST_F(EvalScene, RendersEnviBandsAndOrbitFrames) {
   std::vector<Frame> frames = orbit_frames(*scene, 3);
   ASSERT_EQ(frames.size(), 3u);
   EXPECT_EQ(frames[2].name, "orbit_002");
-  EXPECT_EQ(render_frames(*scene, gaussians, background, frames, options, out), 3 * 3);
+  EXPECT_EQ(render_frames(*scene, gaussians, background, frames, options, out), 3 * 3 + 1);
   io::Cube cube = io::read_cube(out / "orbit_001.hdr");
   EXPECT_EQ(cube.bands(), 4);
   EXPECT_EQ(cube.wavelengths_nm, kWavelengths);

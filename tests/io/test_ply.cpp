@@ -143,7 +143,7 @@ types = [('x', '<f8') if n == 'x' else (n, '<f4') for n in names]
 rows = np.zeros(2, dtype=types)
 for g in range(2):
     for i, n in enumerate(names):
-        rows[n][g] = 1000 * g + i
+        rows[n][g] = (1000 * g + i) / 100.0
 header = 'ply\nformat binary_little_endian 1.0\ncomment made by numpy\ncomment wavelengths 500 600\n'
 header += 'element vertex 2\n' + ''.join('property %s %s\n' % ('double' if n == 'x' else 'float', n) for n in names)
 header += 'end_header\n'
@@ -153,8 +153,9 @@ open(sys.argv[0].replace('script.py', 'g.ply'), 'wb').write(header.encode() + ro
   ASSERT_EQ(ply.bands(), 2);
   ASSERT_EQ(ply.sh_degree(), 1);
   EXPECT_EQ(ply.wavelengths_nm, (std::vector<double>{500, 600}));
-  // Property i of Gaussian g holds 1000 g + i (positions in `names` above).
-  auto at = [](int g, int i) { return float(1000 * g + i); };
+  // Property i of Gaussian g holds (1000 g + i) / 100 (positions in `names`
+  // above; scale_* stay below the largest accepted, 20).
+  auto at = [](int g, int i) { return float((1000 * g + i) / 100.0); };
   for (int g = 0; g < 2; ++g) {
     EXPECT_EQ(ply.means[g][0].item<float>(), at(g, 3));
     EXPECT_EQ(ply.means[g][1].item<float>(), at(g, 6));

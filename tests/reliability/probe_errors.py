@@ -628,8 +628,9 @@ def round3_cases(p):
     p.check("cube fifo", ["-q", "train", scene, "--out", scene + "_run", "--preset", "demo",
                           "--iterations", "20"], [cube])
     p.check("response folder", render + ["--response", p.work], [p.work], contains=["folder"])
-    for flag in ("--wavelengths", "--index", "--response", "--band", "--bands", "--split"):
+    for flag in ("--wavelengths", "--index", "--response", "--band", "--bands"):
         p.check("render %s ''" % flag, render + [flag, ""], [flag], contains=["empty"])
+    p.check("render --split ''", render + ["--split", ""], ["--split"])  # CLI11's choice check
     p.check("export --bands ''", ["-q", "export", p.run_dir, "--bands", ""], ["--bands"])
     p.check("train --band-range ''", ["-q", "train", p.scene, "--out", p.fresh("r3_empty"),
                                       "--band-range", ""], ["--band-range"])
@@ -658,7 +659,7 @@ def round3_cases(p):
                          else "listing %s" % os.listdir(folder)))
     ndvi_csv = os.path.join(p.work, "r3_responses", "ndvi.csv")
     os.makedirs(os.path.dirname(ndvi_csv), exist_ok=True)
-    write(ndvi_csv, "wavelength_nm,red,nir\n" + "".join("%d,1,0.5\n" % w for w in range(500, 610, 10)))
+    write(ndvi_csv, "wavelength_nm,red,nir\n500,1,0\n600,1,0\n700,0,1\n800,0,1\n")
     p.must(["-q", "render", run_dir, "--index", "ndvi"])
     p.works("render --response ndvi.csv beside --index ndvi",
             ["-q", "render", run_dir, "--response", ndvi_csv],
