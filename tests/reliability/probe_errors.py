@@ -669,6 +669,75 @@ def round3_cases(p):
                          else "folders %s" % os.listdir(os.path.join(run_dir, "renders"))))
 
 
+def rig_cases(p):
+    """Real field captures: metadata out of range, reference cameras, too few captures,
+    a panel capture without a panel. Each refused before any work, naming the file, the
+    tag and the value (or the flag)."""
+    rig = p.fresh("rig_src")
+    p.must(["-q", "synth", "--preset", "rig", "--width", "64", "--height", "48", "--views", "4",
+            "--out", rig])
+    poses = ["--skip-colmap", "--poses", os.path.join(rig, "truth", "transforms.json")]
+
+    def damaged(name, band_file, old, new):
+        """A copy of the captures whose BAND_FILE has OLD replaced by NEW (the same length,
+        so the TIFF's offsets hold) in its XMP packet, wherever it occurs."""
+        assert len(old) == len(new), (old, new)
+        dst = p.fresh(name)
+        shutil.copytree(os.path.join(rig, "captures"), dst)
+        path = os.path.join(dst, band_file)
+        data = open(path, "rb").read()
+        assert old.encode() in data, (old, path)
+        write(path, data.replace(old.encode(), new.encode()), "wb")
+        return dst, path
+
+    for name, old, new, contains in [
+        ("wavelength -5 nm", 'CentralWavelength="560"', 'CentralWavelength="-05"',
+         ["CentralWavelength", "-5"]),
+        ("wavelength 0 nm", 'CentralWavelength="560"', 'CentralWavelength="000"',
+         ["CentralWavelength", "is 0"]),
+        ("calibration a1 below 0", "Calibration><rdf:Seq><rdf:li>0.",
+         "Calibration><rdf:Seq><rdf:li>-.", ["RadiometricCalibration a1", "-0.00028"]),
+        ("calibration a1 of 0", "<rdf:li>0.00027999999999999998</rdf:li>",
+         "<rdf:li>0.00000000000000000000</rdf:li>", ["RadiometricCalibration a1", "is 0"]),
+        ("vignetting that turns negative", "<rdf:li>-0.0001875</rdf:li>",
+         "<rdf:li>-0.1000000</rdf:li>", ["VignettingPolynomial", "negative"]),
+        ("irradiance of 1e-300", '"1.3"\n Camera:IrradianceScaleToSIUnits="1"',
+         '"1e-300"\n Camera:IrradianceScaleToSI="1"  ', ["SpectralIrradiance", "1e-300"]),
+        ("irradiance of 1e9", 'SpectralIrradiance="1.3"', 'SpectralIrradiance="1e9"',
+         ["SpectralIrradiance", "1e+09"]),
+    ]:
+        captures, path = damaged("rig_" + name.replace(" ", "_"), "IMG_0001_2.tif", old, new)
+        p.check("rig metadata: " + name, ["process", captures, "--rig"] + poses +
+                ["--out", p.fresh("rig_out")], [path], contains)
+        p.check("rig info: " + name, ["info", captures], [path], contains)
+    captures = os.path.join(rig, "captures")
+    for value, contains in [("-1", ["-1 is not a band camera", "its cameras: 1, 2, 3, 4, 5"]),
+                            ("0", ["0 is not a band camera"]), ("7", ["7 is not a band camera"])]:
+        p.check("rig --reference-camera " + value,
+                ["process", captures, "--rig", "--reference-camera", value] + poses +
+                ["--out", p.fresh("rig_out")], ["--reference-camera"], contains)
+    one = p.fresh("rig_one_capture")
+    os.makedirs(one)
+    for k in range(1, 6):
+        shutil.copy(os.path.join(captures, "IMG_0000_%d.tif" % k), one)
+    p.check("rig of one capture (before COLMAP)", ["process", one, "--rig", "--out",
+            p.fresh("rig_out")], [one], ["at least 3 overlapping captures"])
+    not_panel = p.fresh("rig_not_a_panel")
+    os.makedirs(not_panel)
+    for k in range(1, 6):
+        shutil.copy(os.path.join(captures, "IMG_0001_%d.tif" % k),
+                    os.path.join(not_panel, "PANL_0000_%d.tif" % k))
+    albedo = ",".join(str(a) for a in json.load(open(os.path.join(rig, "synth.json")))["panel_albedo"])
+    out = p.fresh("rig_out")
+    p.check("rig panel capture without a panel", ["process", captures, "--rig", "--panel", not_panel,
+            "--panel-albedo", albedo] + poses + ["--out", out], [not_panel],
+            ["no calibration panel found", "rig_out.panel.png"])
+    for value in ["1,2,3", "a:1,2,3,4", "1:1,2,3,4.5", "9:1,1,5,5"]:
+        p.check("rig --panel-region " + value, ["process", captures, "--rig", "--panel",
+                os.path.join(rig, "panel"), "--panel-albedo", albedo, "--panel-region", value] +
+                poses + ["--out", p.fresh("rig_out")], ["--panel-region"])
+
+
 def main():
     if "--help" in sys.argv[1:] or "-h" in sys.argv[1:]:
         print(__doc__.strip())
@@ -682,7 +751,7 @@ def main():
     p = Probe(binary, work)
     only = os.environ.get("PROBE_ONLY", "")
     for group in (cube_cases, transforms_cases, colmap_cases, run_cases, flag_cases,
-                  round2_cases, round3_cases):
+                  round2_cases, round3_cases, rig_cases):
         if not only or only in group.__name__:
             group(p)
     for failure in p.failures:
