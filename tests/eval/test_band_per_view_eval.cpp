@@ -121,9 +121,10 @@ TEST_F(BandPerView, DiffComparesEachViewOnItsOwnBand) {
   options.diff = true;
   const fs::path out = test::temp_dir("bpv_eval_diff");
   const std::vector<Frame> frames = view_frames(*scene, scene->test);
-  // Per frame: the pseudo-RGB picture, then the heatmap and the comparison.
+  // Per frame: the pseudo-RGB picture, then the heatmap and the comparison;
+  // and channels.json.
   EXPECT_EQ(render_frames(*scene, gaussians, background, frames, options, out),
-            int(3 * frames.size()));
+            1 + int(3 * frames.size()));
   // Capture 1's red-edge view (band 2) against its clean truth, which the
   // model renders exactly: truth and render panels alike, error zero.
   const torch::Tensor compare = io::read_image(out / "c1_b2_band2_compare.png");
@@ -146,7 +147,7 @@ TEST_F(BandPerView, DiffComparesEachViewOnItsOwnBand) {
   const fs::path nir = test::temp_dir("bpv_eval_band3");
   options.bands = select_bands("3", "", scene->wavelengths_nm);
   EXPECT_EQ(render_frames(*scene, gaussians, background, frames, options, nir),
-            int(frames.size() + 2 * 2));
+            1 + int(frames.size() + 2 * 2));
   EXPECT_TRUE(fs::exists(nir / "c3_b3_band3_compare.png"));
   EXPECT_FALSE(fs::exists(nir / "c3_b1_band3_compare.png"));
 

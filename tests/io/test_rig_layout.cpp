@@ -4,6 +4,7 @@
 
 #include "core/error.h"
 #include "io/files/atomic_file.h"
+#include "io/rig/rig_capture.h"
 #include "io/rig/rig_layout.h"
 #include "io/transforms/transforms.h"
 #include "support/test_support.h"

@@ -3,7 +3,9 @@
 // gradients match finite differences, and a known rotation and offset of a
 // band camera are recovered by rendering.
 #include <gtest/gtest.h>
+
 #include <torch/optim/adam.h>
+#include <memory>
 
 #include "io/rig/rig_capture.h"
 #include "model/densify.h"
@@ -18,8 +20,9 @@ constexpr double kDeg = 3.14159265358979323846 / 180;
 
 // A rig of three cameras (2 is the reference) seen in `captures` captures
 // around the origin; views in capture order, cameras 1, 2, 3 each.
-io::Scene rig_scene(int captures) {
-  io::Scene scene;
+std::unique_ptr<io::Scene> rig_scene(int captures) {
+  auto made = std::make_unique<io::Scene>();
+  io::Scene& scene = *made;
   scene.root = "rig";
   io::TransformsRig rig;
   rig.reference_camera = 2;
@@ -43,7 +46,7 @@ io::Scene rig_scene(int captures) {
       scene.train.push_back(int(scene.views.size()) - 1);
     }
   }
-  return scene;
+  return made;
 }
 
 core::Vec3 row_vec(const torch::Tensor& t, int64_t g) {
@@ -51,7 +54,8 @@ core::Vec3 row_vec(const torch::Tensor& t, int64_t g) {
 }
 
 TEST(RigRefinement, MovedGaussiansSeenByTheViewAreTheGaussiansSeenByTheCorrectedCamera) {
-  const io::Scene scene = rig_scene(2);
+  const std::unique_ptr<io::Scene> made = rig_scene(2);
+  const io::Scene& scene = *made;
   RigRefinement rig(scene);
   ASSERT_EQ(rig->rotation.size(0), 2);  // cameras 1 and 3
   torch::NoGradGuard no_grad;
@@ -96,7 +100,8 @@ TEST(RigRefinement, MovedGaussiansSeenByTheViewAreTheGaussiansSeenByTheCorrected
 }
 
 TEST(RigRefinement, GradientsMatchFiniteDifferences) {
-  const io::Scene scene = rig_scene(2);
+  const std::unique_ptr<io::Scene> made = rig_scene(2);
+  const io::Scene& scene = *made;
   RigRefinement rig(scene);
   rig->to(torch::kFloat64);
   {
@@ -135,7 +140,8 @@ TEST(RigRefinement, RecoversAKnownRotationAndOffsetByRendering) {
   // its factory placement; camera 1's is the factory's. Fitting the
   // corrections (Gaussians frozen) to renders from the true cameras finds
   // both.
-  const io::Scene scene = rig_scene(4);
+  const std::unique_ptr<io::Scene> made = rig_scene(4);
+  const io::Scene& scene = *made;
   const model::Gaussians blobs = test::blob_scene(80, 7);
   const torch::Tensor background = torch::zeros({3});
   const io::RigCorrection truth{{0.6 * kDeg, -0.7 * kDeg, 0.3 * kDeg}, {0.1, -0.08, 0.07}};
