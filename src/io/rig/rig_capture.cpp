@@ -349,8 +349,10 @@ void check_metadata(const RigBandImage& b) {
     double reach = 0;
     for (double x : {0.0, double(b.width)})
       for (double y : {0.0, double(b.height)}) reach = std::max(reach, std::hypot(x - cx, y - cy));
-    // 1 + k0 r + k1 r^2 + ... over every radius the image reaches.
-    for (double radius = 0; radius <= reach + 1; radius += 1) {
+    // 1 + k0 r + k1 r^2 + ... over the radii the image reaches (every pixel
+    // step, or 4,096 steps on an image wider than that).
+    const double step = std::max(1.0, reach / 4096);
+    for (double radius = 0; radius <= reach + step; radius += step) {
       double poly = 0;
       for (auto k = r.vignetting_polynomial.rbegin(); k != r.vignetting_polynomial.rend(); ++k)
         poly = (poly + *k) * radius;
