@@ -13,6 +13,7 @@
 
 #include "io/files/atomic_file.h"
 #include "io/scene/scene.h"
+#include "reliability/cli_support.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -20,9 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-int ddhgs(const std::string& args, std::string* out) {
-  return test::run_command(test::ddhgs_binary() + " " + args, out);
-}
+using test::ddhgs;
 
 json read_json(const fs::path& p) {
   return json::parse(io::read_file(p));
