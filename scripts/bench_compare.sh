@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Two builds of bench_train_step, interleaved case by case (base, then new;
 # two rounds), so that the machine's load hits both alike. Prints wall and
-# CPU seconds per iteration for the issue-14 cases.
+# CPU seconds per iteration at 160x128 with 10k Gaussians (3, 40, 128 and
+# 141 bands) and at 640x512 with 100k Gaussians (141 bands).
 #   scripts/bench_compare.sh BASE_BUILD_DIR NEW_BUILD_DIR
 # e.g. git worktree add /tmp/base REV && cmake -S /tmp/base -B /tmp/base/build -G Ninja \
 #        -DCMAKE_BUILD_TYPE=Release -DDDHGS_BUILD_TESTS=OFF && ninja -C /tmp/base/build bench/bench_train_step

@@ -23,7 +23,7 @@ export DDHGS_PROCESS_SYNTH="${DDHGS_PROCESS_SYNTH:---width 512 --height 384 --ba
 # 1,800 per 512x384 view, and exhaustive matching time grows with their square.
 export DDHGS_PROCESS_ARGS="${DDHGS_PROCESS_ARGS:---matcher exhaustive --colmap-set Mapper.filter_max_reproj_error=1 --colmap-set Mapper.tri_min_angle=3 --colmap-set SiftExtraction.max_num_features=1024}"
 export DDHGS_PROCESS_TRAIN="${DDHGS_PROCESS_TRAIN:---preset demo --downscale 8 --set iterations=300}"
-# The issue's bars: median rotation error under 1 degree, position under 2 %.
+# The bars: median rotation error under 1 degree, position under 2 %.
 export DDHGS_PROCESS_MAX_ROTATION_DEG="${DDHGS_PROCESS_MAX_ROTATION_DEG:-1}"
 export DDHGS_PROCESS_MAX_POSITION_PCT="${DDHGS_PROCESS_MAX_POSITION_PCT:-2}"
 # Processed-scene PSNR within 1.5 dB of the true-pose run.

@@ -5,8 +5,8 @@
 # rotations), then every band camera's rotation error against the truth
 # after a similarity alignment. It runs the CI test
 # RigCli.ColmapPosesEveryBandCamera (320x240 there, for time) at 640x480,
-# half a RedEdge's 1280x960, once per seed, with the issue's bar of 0.1
-# degrees for every camera, and prints each run's "COLMAP:" line (copied into
+# half a RedEdge's 1280x960, once per seed, with a bar of 0.1 degrees for
+# every camera, and prints each run's "COLMAP:" line (copied into
 # docs/benchmarks.md).
 #   scripts/rig_pose_benchmark.sh [BUILD_DIR] [SEED...]   (default: build 0 1)
 # Overrides: DDHGS_RIG_SIZE (synth flags, default "--width 640 --height 480

@@ -128,14 +128,14 @@ TEST(ProcessCli, RecoversSyntheticPosesAndTrainsLikeTheTruePoses) {
       env_or("DDHGS_PROCESS_ARGS",
              "--matcher exhaustive --colmap-set Mapper.filter_max_reproj_error=1 "
              "--colmap-set Mapper.tri_min_angle=3");
-  // The bars: median rotation error under 1 degree and position
-  // error under 2 % of the scene size.
+  // The bars: median rotation error under 1 degree and position error
+  // under 2 % of the scene size.
   const double max_rotation_deg = std::stod(env_or("DDHGS_PROCESS_MAX_ROTATION_DEG", "1"));
   const double max_position_pct = std::stod(env_or("DDHGS_PROCESS_MAX_POSITION_PCT", "2"));
   // How far below the true-pose run the processed run's PSNR may be (dB).
   // At CI size the 0.2-0.6 degree poses cost about 2 dB after 100 iterations
-  // (the 2-degree poses before domain-size pooling cost 6 dB); the issue's
-  // 1.5 dB is set by scripts/process_benchmark.sh at full size.
+  // (the 2-degree poses before domain-size pooling cost 6 dB); the full-size
+  // bar, 1.5 dB, is set by scripts/process_benchmark.sh.
   const double max_psnr_gap = std::stod(env_or("DDHGS_PROCESS_MAX_PSNR_GAP", "3"));
   const std::string train_args =
       env_or("DDHGS_PROCESS_TRAIN", "--preset demo --downscale 4 --set iterations=100");
