@@ -40,7 +40,7 @@ struct Block {
   uint64_t released_at;  // request count when it came back
 };
 
-class Pool {
+class Buffers {
  public:
   void* take(size_t bytes, size_t& capacity) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -98,8 +98,8 @@ class Pool {
 };
 
 // Never destroyed: pooled tensors may outlive static destruction order.
-Pool& pool() {
-  static Pool* p = new Pool();
+Buffers& buffers() {
+  static Buffers* p = new Buffers();
   return *p;
 }
 
@@ -130,18 +130,18 @@ at::Tensor pooled_empty(at::IntArrayRef sizes, at::ScalarType dtype) {
   if (serve_as < kPoolMinBytes) return at::empty(sizes, at::TensorOptions().dtype(dtype));
   size_t capacity = 0;
   // A crop's image asks for the block of the whole view's image.
-  void* data = pool().take(serve_as, capacity);
+  void* data = buffers().take(serve_as, capacity);
   return at::from_blob(
-      data, sizes, [capacity](void* p) { pool().give_back(p, capacity); },
+      data, sizes, [capacity](void* p) { buffers().give_back(p, capacity); },
       at::TensorOptions().dtype(dtype));
 }
 
 size_t pool_idle_bytes() {
-  return pool().idle_bytes();
+  return buffers().idle_bytes();
 }
 
 void pool_release_idle() {
-  pool().release_idle();
+  buffers().release_idle();
 }
 
 }  // namespace ddhgs::core

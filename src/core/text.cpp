@@ -60,6 +60,18 @@ std::string printable(std::string_view text) {
   return out;
 }
 
+std::string fixed(double value, int decimals) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", decimals, value);
+  return text;
+}
+
+std::string number_text(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g", value);
+  return text;
+}
+
 std::string quoted_value(std::string_view value) {
   if (value.size() <= kQuotedChars) return "'" + printable(value) + "'";
   size_t kept = kQuotedChars;

@@ -17,6 +17,13 @@ std::string trim(const std::string& s);
 // reads back exactly), as metadata lists and COLMAP options write them.
 std::string join_numbers(const std::vector<double>& values);
 
+// value with `decimals` digits after the point ("%.*f": fixed(2.345, 2) is "2.35").
+std::string fixed(double value, int decimals);
+
+// value to 6 significant digits ("%.6g": 0.000123457, 1449.36, 1e+300), as
+// messages quote a file's number.
+std::string number_text(double value);
+
 // The characters of a user's value a message quotes (quoted_value()).
 constexpr size_t kQuotedChars = 80;
 

@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 #include "eval/evaluate.h"
 #include "io/files/atomic_file.h"
 
@@ -21,12 +22,6 @@ double ms_since(Clock::time_point start) {
 
 json metrics_summary(const ImageMetrics& m) {
   return {{"psnr", m.psnr_db}, {"ssim", m.ssim}, {"sam", m.sam_rad}, {"rmse", m.rmse}};
-}
-
-std::string fixed(double value, int decimals) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, value);
-  return buf;
 }
 
 }  // namespace
@@ -87,7 +82,7 @@ DenoisedReport evaluate_denoised(const io::Scene& scene, const model::Gaussians&
         result.per_view.push_back({name, "clean", *m.clean, std::nullopt, std::nullopt});
       }
       bar.update(int64_t(i * settings.size() + s + 1),
-                 settings[s].name + " PSNR " + fixed(stored[s].back().psnr_db, 2) + " dB");
+                 settings[s].name + " PSNR " + core::fixed(stored[s].back().psnr_db, 2) + " dB");
     }
   }
   report.render_ms = render_ms / double(views.size());
@@ -141,15 +136,15 @@ void write_denoised_csv(const std::filesystem::path& path, const DenoisedReport&
   for (const DenoisedResult& result : report.results)
     for (const ViewResult& r : result.per_view)
       csv << result.setting.name << "," << r.view << "," << r.truth << ","
-          << fixed(r.metrics.psnr_db, 6) << "," << fixed(r.metrics.ssim, 8) << ","
-          << fixed(r.metrics.sam_rad, 8) << "," << fixed(r.metrics.rmse, 8) << "\n";
+          << core::fixed(r.metrics.psnr_db, 6) << "," << core::fixed(r.metrics.ssim, 8) << ","
+          << core::fixed(r.metrics.sam_rad, 8) << "," << core::fixed(r.metrics.rmse, 8) << "\n";
   io::write_file_atomically(path, csv.str());
 }
 
 std::string format_denoised(const DenoisedReport& report) {
   std::ostringstream out;
   out << "denoised (" << report.views << (report.views == 1 ? " view" : " views") << ", render "
-      << fixed(report.render_ms, 1) << " ms per frame)\n";
+      << core::fixed(report.render_ms, 1) << " ms per frame)\n";
   out << "  setting  truth    PSNR dB     SSIM  SAM rad     RMSE      FPS\n";
   for (const DenoisedResult& r : report.results) {
     auto row = [&](const char* truth, const ImageMetrics& m) {

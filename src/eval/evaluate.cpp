@@ -33,12 +33,6 @@ json metrics_json(const ImageMetrics& m, const std::vector<double>& wavelengths_
           {"per_band_psnr", {{"wavelengths_nm", wavelengths_nm}, {"psnr", m.band_psnr_db}}}};
 }
 
-std::string fixed(double value, int decimals) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, value);
-  return buf;
-}
-
 // The views (rows against the stored views) without a spectral angle: those
 // that hold one band, whose "spectrum" is one value.
 int views_without_angle(const EvalReport& report) {
@@ -241,16 +235,17 @@ EvalReport evaluate(const io::Scene& scene, const model::Gaussians& gaussians,
       report.per_view.push_back({name, "clean", *m.clean, m.clean_object, std::nullopt});
       if (m.clean_object) clean_object.push_back(*m.clean_object);
     }
-    bar.update(int64_t(i + 1),
-               "PSNR " + fixed(stored.back().psnr_db, 2) + " dB" +
-                   (options.align ? ", aligned " + fixed(aligned.back().psnr_db, 2) + " dB" : ""));
+    bar.update(
+        int64_t(i + 1),
+        "PSNR " + core::fixed(stored.back().psnr_db, 2) + " dB" +
+            (options.align ? ", aligned " + core::fixed(aligned.back().psnr_db, 2) + " dB" : ""));
   }
   report.mean = mean_metrics(stored);
   if (!clean.empty()) report.mean_clean = mean_metrics(clean);
   report.mean_object = mean_object(stored_object);
   report.mean_object_clean = mean_object(clean_object);
   if (!aligned.empty()) report.mean_aligned = mean_metrics(aligned);
-  bar.finish("PSNR " + fixed(report.mean.psnr_db, 2) + " dB");
+  bar.finish("PSNR " + core::fixed(report.mean.psnr_db, 2) + " dB");
 
   if (options.fps_repeats > 0) {
     const std::vector<int>& timed = scene.test.empty() ? views : scene.test;
@@ -267,7 +262,7 @@ void write_metrics_json(const std::filesystem::path& path, const EvalReport& rep
   j["bands"] = report.wavelengths_nm.size();
   j["width"] = report.width;
   j["height"] = report.height;
-  j["units"] = {{"psnr", "dB, capped at " + fixed(kMaxPsnrDb, 0)},
+  j["units"] = {{"psnr", "dB, capped at " + core::fixed(kMaxPsnrDb, 0)},
                 {"sam", "radians"},
                 {"ssim", "11x11 Gaussian window, sigma 1.5, valid windows"},
                 {"fps", "frames per second, render only"}};
@@ -318,23 +313,24 @@ void write_per_view_csv(const std::filesystem::path& path, const EvalReport& rep
     csv << ",aligned_psnr_db,aligned_ssim,aligned_sam_rad,aligned_rmse,aligned_motion_px";
   csv << "\n";
   // A one-band view's spectral angle is empty too.
-  auto angle = [](double sam_rad) { return std::isnan(sam_rad) ? "" : fixed(sam_rad, 8); };
+  auto angle = [](double sam_rad) { return std::isnan(sam_rad) ? "" : core::fixed(sam_rad, 8); };
   for (const ViewResult& r : report.per_view) {
-    csv << r.view << "," << r.truth << "," << fixed(r.metrics.psnr_db, 6) << ","
-        << fixed(r.metrics.ssim, 8) << "," << angle(r.metrics.sam_rad) << ","
-        << fixed(r.metrics.rmse, 8);
+    csv << r.view << "," << r.truth << "," << core::fixed(r.metrics.psnr_db, 6) << ","
+        << core::fixed(r.metrics.ssim, 8) << "," << angle(r.metrics.sam_rad) << ","
+        << core::fixed(r.metrics.rmse, 8);
     if (masked) {
       const std::optional<ObjectMetrics>& o = r.object;
       const RegionMetrics* in = o && o->interior ? &*o->interior : nullptr;
-      csv << "," << (o ? fixed(o->share, 6) : "") << "," << (o ? fixed(o->object.psnr_db, 6) : "")
-          << "," << (o ? angle(o->object.sam_rad) : "") << "," << (in ? fixed(in->psnr_db, 6) : "")
+      csv << "," << (o ? core::fixed(o->share, 6) : "") << ","
+          << (o ? core::fixed(o->object.psnr_db, 6) : "") << ","
+          << (o ? angle(o->object.sam_rad) : "") << "," << (in ? core::fixed(in->psnr_db, 6) : "")
           << "," << (in ? angle(in->sam_rad) : "");
     }
     if (aligned) {
       if (const auto& a = r.aligned)
-        csv << "," << fixed(a->metrics.psnr_db, 6) << "," << fixed(a->metrics.ssim, 8) << ","
-            << fixed(a->metrics.sam_rad, 8) << "," << fixed(a->metrics.rmse, 8) << ","
-            << fixed(a->motion_px, 4);
+        csv << "," << core::fixed(a->metrics.psnr_db, 6) << "," << core::fixed(a->metrics.ssim, 8)
+            << "," << core::fixed(a->metrics.sam_rad, 8) << "," << core::fixed(a->metrics.rmse, 8)
+            << "," << core::fixed(a->motion_px, 4);
       else
         csv << ",,,,,";
     }
@@ -351,7 +347,7 @@ std::string format_report(const EvalReport& report) {
       << " bands, " << report.gaussians << " Gaussians\n";
   out << "  truth    PSNR dB     SSIM  SAM rad     RMSE\n";
   // A spectral angle as the table shows it: "-" where there is none.
-  auto angle = [](double sam_rad) { return std::isnan(sam_rad) ? "-" : fixed(sam_rad, 4); };
+  auto angle = [](double sam_rad) { return std::isnan(sam_rad) ? "-" : core::fixed(sam_rad, 4); };
   auto row = [&](const char* name, const ImageMetrics& m) {
     char buf[128];
     std::snprintf(buf, sizeof buf, "  %-7s %8.3f %8.4f %8s %8.5f\n", name, m.psnr_db, m.ssim,
@@ -388,8 +384,8 @@ std::string format_report(const EvalReport& report) {
   if (report.mean_object_clean) object_rows(*report.mean_object_clean);
   if (const std::string note = angle_note(report); !note.empty()) out << "  (" << note << ")\n";
   if (report.timing && report.timing->repeats > 0)
-    out << "  render " << fixed(report.timing->fps(), 2) << " FPS ("
-        << fixed(report.timing->median_ms, 1) << " ms per frame, median of "
+    out << "  render " << core::fixed(report.timing->fps(), 2) << " FPS ("
+        << core::fixed(report.timing->median_ms, 1) << " ms per frame, median of "
         << report.timing->repeats << " passes over " << report.timing->views << " views)\n";
   return out.str();
 }

@@ -14,7 +14,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr int64_t kColourBarPx = 8;
+constexpr int64_t kReportColourBarPx = 8;
 
 // The paper's figure ranges, nm.
 constexpr double kPaperRangesNm[][2] = {{400, 418}, {750, 768}, {1082, 1100}};
@@ -84,7 +84,7 @@ torch::Tensor comparison_figure(const torch::Tensor& render, const torch::Tensor
   torch::Tensor error = error_heatmap(render, truth, bands, diff_max, map);
   return comparison_panels(picture(truth, wavelengths_nm, bands, Colormap::Gray),
                            picture(render, wavelengths_nm, bands, Colormap::Gray), error, map,
-                           kColourBarPx);
+                           kReportColourBarPx);
 }
 
 BandAtlas band_atlas(const torch::Tensor& cube, int max_px) {

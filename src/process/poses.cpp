@@ -19,7 +19,7 @@ std::map<std::string, size_t> cube_index_by_name(const CubeSet& cubes) {
   return index;
 }
 
-std::string stem_of(const std::string& name) {
+std::string image_stem(const std::string& name) {
   return fs::path(name).stem().string();
 }
 
@@ -29,7 +29,7 @@ std::vector<int64_t> cube_of_images(const ColmapModel& model, const CubeSet& cub
   auto index = cube_index_by_name(cubes);
   std::vector<int64_t> out;
   for (const auto& image : model.images) {
-    auto it = index.find(stem_of(image.name));
+    auto it = index.find(image_stem(image.name));
     out.push_back(it == index.end() ? -1 : int64_t(it->second));
   }
   return out;

@@ -13,7 +13,7 @@ namespace ddhgs::render {
 namespace {
 
 // Pixels per reduction chunk: the partial sums depend on it, not on threads.
-constexpr int64_t kChunk = 2048;
+constexpr int64_t kDecodeChunk = 2048;
 
 // A vector of kLanes bands (GCC vector extension): one AVX-512 register where
 // the build has it, one AVX2 register otherwise.
@@ -158,11 +158,11 @@ void backward_chunk_for(int64_t K, const float* g, const float* z, const float* 
 
 void backward_kernel(const float* g, const float* z, const float* a, const Rows& r, int64_t P,
                      float* dz, float* da, float* partials) {
-  const int64_t chunks = (P + kChunk - 1) / kChunk;
+  const int64_t chunks = (P + kDecodeChunk - 1) / kDecodeChunk;
   const int64_t K = r.K, S = r.S;
   core::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
     for (int64_t chunk = chunk_begin; chunk < chunk_end; ++chunk) {
-      const int64_t p0 = chunk * kChunk, p1 = std::min(P, p0 + kChunk);
+      const int64_t p0 = chunk * kDecodeChunk, p1 = std::min(P, p0 + kDecodeChunk);
       backward_chunk_for(K, g, z, a, r, p0, p1, dz, da, partials + chunk * (K + 2) * S);
     }
   });
@@ -191,7 +191,7 @@ class DecodeFunction : public torch::autograd::Function<DecodeFunction> {
     const torch::Tensor grad = grad_outputs[0].to(torch::kFloat32).contiguous();  // [P, M]
     const Rows r = rows_of(basis, mean, background);
     const int64_t P = latent.size(0), K = r.K, M = r.M;
-    const int64_t chunks = (P + kChunk - 1) / kChunk;
+    const int64_t chunks = (P + kDecodeChunk - 1) / kDecodeChunk;
     auto d_latent = core::pooled_empty({P, K});
     auto d_alpha = torch::empty({P});
     // Per chunk: sum_p g[p, j] z[p, k] (K rows), sum_p g alpha, sum_p g.

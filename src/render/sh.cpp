@@ -16,7 +16,7 @@ namespace {
 
 // Fixed-size Gaussian chunks make the band_offsets gradient reduction
 // independent of the thread count: per-chunk partial sums are added in order.
-constexpr int64_t kChunk = 1024;
+constexpr int64_t kShChunk = 1024;
 
 struct ShShapes {
   int64_t G = 0, N = 0;
@@ -148,15 +148,15 @@ void backward_gaussian(const ShInputs<T>& in, const ShShapes& s, const T* grad_o
 template <int Degree, typename T>
 void backward_kernel(const ShInputs<T>& in, const ShShapes& s, const T* grad_out,
                      const ShGrads<T>& gr) {
-  const int64_t chunks = (s.G + kChunk - 1) / kChunk;
+  const int64_t chunks = (s.G + kShChunk - 1) / kShChunk;
   const int64_t row = s.N * s.rest_stride;  // rest gradient floats per Gaussian
   core::parallel_for(0, chunks, 1, [&](int64_t chunk_begin, int64_t chunk_end) {
     std::vector<T>& block = sink_block<T>();
     if (gr.rest_sink) block.resize(size_t(kSinkRows * row));
     for (int64_t chunk = chunk_begin; chunk < chunk_end; ++chunk) {
       T* offsets_partial = gr.offsets ? gr.offsets + chunk * s.N * sh_coeff_count(Degree) : nullptr;
-      const int64_t g_end = std::min(s.G, (chunk + 1) * kChunk);
-      for (int64_t first = chunk * kChunk; first < g_end; first += kSinkRows) {
+      const int64_t g_end = std::min(s.G, (chunk + 1) * kShChunk);
+      for (int64_t first = chunk * kShChunk; first < g_end; first += kSinkRows) {
         const int64_t last = std::min(g_end, first + kSinkRows);
         for (int64_t g = first; g < last; ++g) {
           T* rest_grad = gr.rest_sink ? block.data() + (g - first) * row
@@ -253,7 +253,7 @@ class EvalShFunction : public torch::autograd::Function<EvalShFunction> {
                                ? core::pooled_empty(rest.sizes(), rest.scalar_type())
                                : torch::Tensor();
     torch::Tensor d_means = want_means ? torch::empty_like(means) : torch::Tensor();
-    const int64_t chunks = (shapes.G + kChunk - 1) / kChunk;
+    const int64_t chunks = (shapes.G + kShChunk - 1) / kShChunk;
     torch::Tensor partials =
         want_offsets ? torch::zeros({chunks, shapes.N, K}, dc.options()) : torch::Tensor();
     AT_DISPATCH_FLOATING_TYPES(dc.scalar_type(), "eval_sh_backward", [&] {

@@ -12,7 +12,6 @@ using core::Vec3;
 namespace {
 
 constexpr double kEps = 1e-7;
-constexpr double kPi = 3.14159265358979323846;
 enum Kind { kLeafKind, kCapsuleKind, kPotKind, kSoilKind, kGroundKind };
 
 uint64_t splitmix(uint64_t x) {
@@ -196,7 +195,7 @@ PlantScene PlantScene::build(uint64_t seed, bool ground) {
   }
 
   const int count = 12 + int(uniform(0, 5));
-  const double azimuth0 = uniform(0, 2 * kPi);
+  const double azimuth0 = uniform(0, 2 * M_PI);
   for (int i = 0; i < count; ++i) {
     double f = double(i) / (count - 1);  // 0 lowest .. 1 top
     Vec3 on_stem = stem_point(0.2 + 0.8 * f);
@@ -213,7 +212,7 @@ PlantScene PlantScene::build(uint64_t seed, bool ground) {
     leaf.width = leaf.length * uniform(0.45, 0.62);
     leaf.droop = uniform(0.25, 0.5);
     leaf.cup = uniform(0.1, 0.35);
-    double elevation = (2 + 38 * f + uniform(-8, 8)) * kPi / 180;
+    double elevation = (2 + 38 * f + uniform(-8, 8)) * M_PI / 180;
     leaf.u = out * std::cos(elevation) + Vec3{0, 0, std::sin(elevation)};
     Vec3 up{0, 0, 1};
     Vec3 n0 = (up - leaf.u * up.dot(leaf.u)).normalized();
@@ -319,7 +318,7 @@ void PlantScene::shade(const Ray& ray, double t, int kind, int index, SurfaceHit
       double s = l.a / leaf.length, across = std::abs(l.b) / (0.5 * leaf.width);
       // Paler midrib and lateral veins, yellowing tips and edges, mottling.
       double midrib = 0.55 * std::exp(-std::pow(l.b / (0.035 * leaf.width), 2));
-      double veins = 0.3 * std::pow(0.5 + 0.5 * std::cos(2 * kPi * (7 * s - 2.5 * across)), 24) *
+      double veins = 0.3 * std::pow(0.5 + 0.5 * std::cos(2 * M_PI * (7 * s - 2.5 * across)), 24) *
                      smoothstep(0.05, 0.2, across);
       double tips = 0.35 * smoothstep(0.75, 1.0, s) + 0.2 * smoothstep(0.8, 1.0, across);
       double mottle = 0.25 * value_noise(p * 9.0, seed ^ uint64_t(index + 1));

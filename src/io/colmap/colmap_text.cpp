@@ -65,7 +65,7 @@ class Fields {
   std::istringstream in_;
 };
 
-void read_cameras(const fs::path& path, ColmapModel& model) {
+void read_cameras_text(const fs::path& path, ColmapModel& model) {
   for (const Line& line : read_lines(path)) {
     if (blank(line.text)) continue;
     Fields f(path, line);
@@ -87,7 +87,7 @@ void read_cameras(const fs::path& path, ColmapModel& model) {
   }
 }
 
-void read_images(const fs::path& path, ColmapModel& model) {
+void read_images_text(const fs::path& path, ColmapModel& model) {
   std::vector<Line> lines = read_lines(path);
   size_t i = 0;
   while (i < lines.size()) {
@@ -121,7 +121,7 @@ void read_images(const fs::path& path, ColmapModel& model) {
   }
 }
 
-void read_points(const fs::path& path, ColmapModel& model) {
+void read_points_text(const fs::path& path, ColmapModel& model) {
   for (const Line& line : read_lines(path)) {
     if (blank(line.text)) continue;
     Fields f(path, line);
@@ -155,9 +155,9 @@ std::string num(double v) {
 
 ColmapModel read_colmap_text(const fs::path& dir) {
   ColmapModel model;
-  read_cameras(dir / "cameras.txt", model);
-  read_images(dir / "images.txt", model);
-  if (fs::exists(dir / "points3D.txt")) read_points(dir / "points3D.txt", model);
+  read_cameras_text(dir / "cameras.txt", model);
+  read_images_text(dir / "images.txt", model);
+  if (fs::exists(dir / "points3D.txt")) read_points_text(dir / "points3D.txt", model);
   model.cameras_file = dir / "cameras.txt";
   model.images_file = dir / "images.txt";
   return model;

@@ -284,12 +284,6 @@ void correct_dls1(RigBandImage* image) {
   r.irradiance_correction = note;
 }
 
-std::string value_text(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.6g", v);
-  return text;
-}
-
 // The focal length's unit where the file has no PerspectiveFocalLengthUnits.
 void decide_focal_units(RigBandImage* image) {
   const double f = image->focal_length_mm;
@@ -311,7 +305,7 @@ void decide_focal_units(RigBandImage* image) {
 // Every value the radiometry or the geometry uses, in range.
 void check_metadata(const RigBandImage& b) {
   auto bad = [&](const std::string& tag, double value, const std::string& why) {
-    throw core::Error(b.file, tag + " is " + value_text(value) + ": " + why);
+    throw core::Error(b.file, tag + " is " + core::number_text(value) + ": " + why);
   };
   if (!(b.centre_nm >= 100 && b.centre_nm <= 20000))
     bad("XMP CentralWavelength", b.centre_nm, "not a wavelength (expected 100 to 20000 nm)");
@@ -324,8 +318,8 @@ void check_metadata(const RigBandImage& b) {
   const double full_scale = std::ldexp(1.0, b.bits) - 1;
   if (r.has_black_level && !(r.black_level >= 0 && r.black_level < full_scale))
     bad("EXIF BlackLevel", r.black_level,
-        "outside the " + std::to_string(b.bits) + "-bit range (0 to " + value_text(full_scale - 1) +
-            ")");
+        "outside the " + std::to_string(b.bits) + "-bit range (0 to " +
+            core::number_text(full_scale - 1) + ")");
   if (r.exposure_s != 0 && !(r.exposure_s > 0 && r.exposure_s <= 60))
     bad("EXIF ExposureTime", r.exposure_s, "not an exposure (above 0, at most 60 s)");
   if (r.iso_speed != 0 && !(r.iso_speed >= 1 && r.iso_speed <= 1e6))
@@ -339,8 +333,8 @@ void check_metadata(const RigBandImage& b) {
       for (double y : {0.0, double(std::max<int64_t>(0, b.height - 1))})
         if (!(1 + r.calibration[1] * y / r.exposure_s - r.calibration[2] * y > 0))
           bad("XMP RadiometricCalibration a2", r.calibration[1],
-              "with a3 " + value_text(r.calibration[2]) +
-                  " the row correction turns negative at row " + value_text(y));
+              "with a3 " + core::number_text(r.calibration[2]) +
+                  " the row correction turns negative at row " + core::number_text(y));
   }
   if (r.vignetting_centre_px.size() == 2 && !r.vignetting_polynomial.empty()) {
     const double cx = r.vignetting_centre_px[0], cy = r.vignetting_centre_px[1];
@@ -360,7 +354,8 @@ void check_metadata(const RigBandImage& b) {
         throw core::Error(b.file,
                           "XMP VignettingPolynomial turns the vignetting correction "
                           "negative or infinite at " +
-                              value_text(radius) + " px from its centre: not a lens's vignetting");
+                              core::number_text(radius) +
+                              " px from its centre: not a lens's vignetting");
     }
   }
   if (r.irradiance_raw != 0 && !(r.irradiance_raw >= 1e-6 && r.irradiance_raw <= 100))
@@ -381,9 +376,10 @@ void check_metadata(const RigBandImage& b) {
     const double x = b.principal_point_mm[0] * b.px_per_mm,
                  y = b.principal_point_mm[1] * b.px_per_mm;
     if (!(x > 0 && x < double(b.width) && y > 0 && y < double(b.height)))
-      throw core::Error(
-          b.file, "XMP PrincipalPoint is " + core::join_numbers(b.principal_point_mm) + " mm (" +
-                      value_text(x) + ", " + value_text(y) + " px): not inside the image");
+      throw core::Error(b.file, "XMP PrincipalPoint is " +
+                                    core::join_numbers(b.principal_point_mm) + " mm (" +
+                                    core::number_text(x) + ", " + core::number_text(y) +
+                                    " px): not inside the image");
   } else if (!b.principal_point_mm.empty() && b.principal_point_mm.size() != 2) {
     throw core::Error(b.file, "XMP PrincipalPoint has " +
                                   std::to_string(b.principal_point_mm.size()) +
@@ -393,8 +389,8 @@ void check_metadata(const RigBandImage& b) {
     if (!(std::abs(angle) <= 90))
       bad("XMP RigRelatives", angle, "not a rig camera's angle (at most 90 degrees)");
   if (b.has_position && !(std::abs(b.latitude_deg) <= 90 && std::abs(b.longitude_deg) <= 180))
-    throw core::Error(b.file, "EXIF GPS position " + value_text(b.latitude_deg) + ", " +
-                                  value_text(b.longitude_deg) + " is not on Earth");
+    throw core::Error(b.file, "EXIF GPS position " + core::number_text(b.latitude_deg) + ", " +
+                                  core::number_text(b.longitude_deg) + " is not on Earth");
   for (double angle : b.dls_pose_rad)
     if (!(std::abs(angle) <= 7)) bad("XMP DLS attitude", angle, "not an angle in radians");
 }

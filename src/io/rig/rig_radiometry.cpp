@@ -5,13 +5,12 @@
 #include <cstdio>
 
 #include "core/error.h"
+#include "core/text.h"
 #include "io/cube/cube.h"
 
 namespace ddhgs::io {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // R(y) as [H, 1]: the row-dependent readout correction.
 torch::Tensor row_correction(const RigBandImage& image) {
@@ -25,12 +24,6 @@ torch::Tensor row_correction(const RigBandImage& image) {
 double count_scale(const RigBandImage& image) {
   const RigRadiometry& r = image.radiometry;
   return r.calibration[0] / (r.gain() * r.exposure_s * std::ldexp(1.0, image.bits));
-}
-
-std::string number(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.6g", v);
-  return text;
 }
 
 }  // namespace
@@ -108,14 +101,15 @@ std::vector<ReflectanceCalibration> panel_calibration(const RigCapture& panel,
     if (!found) {
       std::string held;
       for (const RigBandImage& b : panel.bands)
-        held += (held.empty() ? "" : ", ") + b.band_name + " " + number(b.centre_nm) + " nm";
-      throw core::Error(camera.file, "band " + camera.band_name + " (" + number(camera.centre_nm) +
-                                         " nm) has no image in the panel capture, which holds " +
-                                         held);
+        held +=
+            (held.empty() ? "" : ", ") + b.band_name + " " + core::number_text(b.centre_nm) + " nm";
+      throw core::Error(camera.file,
+                        "band " + camera.band_name + " (" + core::number_text(camera.centre_nm) +
+                            " nm) has no image in the panel capture, which holds " + held);
     }
     const RigBandImage& image = *found;
     if (!(albedo[i] > 0 && albedo[i] <= 1))
-      throw core::Error(image.file, "panel albedo " + number(albedo[i]) + " for band " +
+      throw core::Error(image.file, "panel albedo " + core::number_text(albedo[i]) + " for band " +
                                         image.band_name + " is not in (0, 1]");
     const torch::Tensor counts = read_band_counts(image);
     ReflectanceCalibration c;
@@ -163,7 +157,7 @@ std::vector<ReflectanceCalibration> panel_calibration(const RigCapture& panel,
     c.panel_radiance = radiance;
     c.albedo = albedo[i];
     c.panel_file = image.file;
-    c.irradiance = radiance * kPi / albedo[i];
+    c.irradiance = radiance * M_PI / albedo[i];
     out.push_back(std::move(c));
   }
   return out;
@@ -174,7 +168,8 @@ ReflectanceCalibration reflectance_calibration(const RigBandImage& image,
   for (const ReflectanceCalibration& c : panel)
     if (c.band == image.band_name && std::abs(c.centre_nm - image.centre_nm) < 0.5) return c;
   if (!panel.empty())
-    throw core::Error(image.file, "band " + image.band_name + " (" + number(image.centre_nm) +
+    throw core::Error(image.file, "band " + image.band_name + " (" +
+                                      core::number_text(image.centre_nm) +
                                       " nm) is not in the panel capture");
   if (image.radiometry.irradiance <= 0)
     throw core::Error(image.file,
@@ -184,7 +179,7 @@ ReflectanceCalibration reflectance_calibration(const RigBandImage& image,
   c.rig_index = image.rig_index;
   c.band = image.band_name;
   c.centre_nm = image.centre_nm;
-  c.factor = kPi / image.radiometry.irradiance;
+  c.factor = M_PI / image.radiometry.irradiance;
   c.source = "DLS";
   c.irradiance = image.radiometry.irradiance;
   return c;

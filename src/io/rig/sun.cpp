@@ -7,8 +7,7 @@ namespace ddhgs::io {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180;
+constexpr double kDeg = M_PI / 180;
 
 // Unpolarised Fresnel transmission from index n1 into n2 at incidence phi.
 double interface_transmission(double phi, double n1, double n2) {
@@ -57,7 +56,7 @@ SunPosition sun_position(double latitude_deg, double longitude_deg, double unix_
       std::clamp(std::sin(latitude) * std::sin(declination) +
                      std::cos(latitude) * std::cos(declination) * std::cos(hour_angle),
                  -1.0, 1.0);
-  double elevation = kPi / 2 - std::acos(cos_zenith);
+  double elevation = M_PI / 2 - std::acos(cos_zenith);
   // Mean refraction (Saemundsson's formula, 10 C, 1010 hPa), in degrees.
   const double e_deg = elevation / kDeg;
   if (e_deg > -1.0)
@@ -66,8 +65,8 @@ SunPosition sun_position(double latitude_deg, double longitude_deg, double unix_
   double azimuth =
       std::atan2(std::sin(hour_angle), std::cos(hour_angle) * std::sin(latitude) -
                                            std::tan(declination) * std::cos(latitude)) +
-      kPi;
-  azimuth = std::fmod(azimuth + 2 * kPi, 2 * kPi);
+      M_PI;
+  azimuth = std::fmod(azimuth + 2 * M_PI, 2 * M_PI);
   return {elevation, azimuth};
 }
 

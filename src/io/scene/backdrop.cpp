@@ -123,7 +123,7 @@ double border_spread(const Scene& scene, const Borders& borders,
   return 1.4826 * torch::stack(per_band).median().item<double>();
 }
 
-std::string percent(double share) {
+std::string whole_percent(double share) {
   return std::to_string(int(std::lround(100 * share))) + " %";
 }
 
@@ -167,15 +167,16 @@ BorderScan scan_border(const Scene& scene, const std::vector<int>& views, double
   scan.spread = border_spread(scene, borders, on_deviations);
   const std::string within = " within " + core::format_g(tolerance) + " of their median";
   if (scan.share < min_share)
-    scan.why_not = percent(scan.share) + " of the view borders" + within;
+    scan.why_not = whole_percent(scan.share) + " of the view borders" + within;
   else if (scan.view_share < kBackdropMinViewShare)
-    scan.why_not = "the borders of " + percent(scan.view_share) + " of the views lie" + within;
+    scan.why_not =
+        "the borders of " + whole_percent(scan.view_share) + " of the views lie" + within;
   else if (scan.spread > kBackdropMaxSpread)
     scan.why_not = "the border varies by " + core::format_g(round3(scan.spread)) +
                    " around its median, a texture; a backdrop varies by at most " +
                    core::format_g(kBackdropMaxSpread);
   else if (scan.filled_share > kBackdropMaxFilledShare)
-    scan.why_not = "the border's colour fills the middle of " + percent(scan.filled_share) +
+    scan.why_not = "the border's colour fills the middle of " + whole_percent(scan.filled_share) +
                    " of the views too: a surface across the frame (a field, a floor), not a "
                    "backdrop behind an object";
   scan.masked = scan.why_not.empty();

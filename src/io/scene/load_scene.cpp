@@ -22,7 +22,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // A view found in the dataset description, at full resolution.
-struct Candidate {
+struct LayoutCandidate {
   std::string name;
   std::string sort_key;
   core::Camera camera;
@@ -37,7 +37,7 @@ struct Candidate {
 
 struct Found {
   std::string layout;
-  std::vector<Candidate> views;
+  std::vector<LayoutCandidate> views;
   std::vector<std::string> warnings, notes;
   std::vector<double> wavelengths_nm;
   std::optional<double> scale;
@@ -144,7 +144,7 @@ Found from_transforms(const fs::path& root, const LoadOptions& options) {
     if (rel.empty())
       throw core::Error(file,
                         "frames[" + std::to_string(i) + "] has no file_path (needed by --rgb)");
-    Candidate c;
+    LayoutCandidate c;
     c.name = fs::path(rel).stem().string();
     c.sort_key = normal(f.file_path.empty() ? rel : f.file_path);
     c.split_keys = {normal(rel)};
@@ -233,7 +233,7 @@ Found from_colmap(const fs::path& root, const fs::path& model_dir, const LoadOpt
     reduced_cubes = cubes_by_stem(cube_dir.string() + "_" + std::to_string(options.downscale));
 
   for (const auto& image : model.images) {
-    Candidate c;
+    LayoutCandidate c;
     c.name = fs::path(image.name).stem().string();
     c.sort_key = image.name;
     c.split_keys = {normal(image.name)};
@@ -296,13 +296,13 @@ void undistort_cameras(Scene& scene, const fs::path& origin) {
                         scale + ": cropped to what the lens saw, no blank pixels");
 }
 
-void assign_split(Scene& scene, const Found& found, const std::vector<Candidate>& kept,
+void assign_split(Scene& scene, const Found& found, const std::vector<LayoutCandidate>& kept,
                   const fs::path& origin) {
   if (!found.explicit_split) {
     hypernerf_split(int(kept.size()), scene.train, scene.test);
     return;
   }
-  auto in = [](const std::set<std::string>& keys, const Candidate& c) {
+  auto in = [](const std::set<std::string>& keys, const LayoutCandidate& c) {
     return std::any_of(c.split_keys.begin(), c.split_keys.end(),
                        [&](const std::string& k) { return keys.count(k) > 0; });
   };
@@ -350,18 +350,19 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
   scene->rig = found.rig;
 
   // Sorted as nerfstudio sorts frames, so split indices match its own.
-  std::vector<Candidate> kept;
+  std::vector<LayoutCandidate> kept;
   for (auto& c : found.views)
     if (!c.data_path.empty()) kept.push_back(c);
-  std::stable_sort(kept.begin(), kept.end(),
-                   [](const Candidate& a, const Candidate& b) { return a.sort_key < b.sort_key; });
+  std::stable_sort(
+      kept.begin(), kept.end(),
+      [](const LayoutCandidate& a, const LayoutCandidate& b) { return a.sort_key < b.sort_key; });
   if (kept.empty())
     throw core::Error(origin, "none of the " + std::to_string(found.views.size()) +
                                   " listed views has its file on disk");
 
   // A band-per-view scene: frames name the bands their files hold.
-  const bool per_view =
-      std::any_of(kept.begin(), kept.end(), [](const Candidate& c) { return !c.bands.empty(); });
+  const bool per_view = std::any_of(kept.begin(), kept.end(),
+                                    [](const LayoutCandidate& c) { return !c.bands.empty(); });
   if (per_view && (found.rgb || options.bin > 1 || options.band_step > 1))
     throw core::Error(origin, std::string("frames name the bands their files hold (a band-per-view "
                                           "scene), which ") +
@@ -391,8 +392,8 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
     std::vector<int> scene_band_of(size_t(scene->source_bands), -1);
     for (size_t b = 0; b < scene->band_index.size(); ++b)
       scene_band_of[size_t(scene->band_index[b])] = int(b);
-    std::vector<Candidate> with_bands;
-    for (Candidate& c : kept) {
+    std::vector<LayoutCandidate> with_bands;
+    for (LayoutCandidate& c : kept) {
       if (c.bands.empty()) {
         with_bands.push_back(std::move(c));
         continue;
