@@ -7,7 +7,7 @@
 #include "core/log.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_ablate {
 
 struct AblateArgs {
   std::string data, out;
@@ -79,5 +79,5 @@ Action setup(CLI::App& parent) {
 
 Registrar registrar("ablate", 55, setup);
 
-}  // namespace
+}  // namespace cmd_ablate
 }  // namespace ddhgs::app

@@ -20,7 +20,7 @@
 #include "io/scene/backdrop.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_eval {
 namespace fs = std::filesystem;
 
 struct EvalArgs {
@@ -162,5 +162,5 @@ Action setup(CLI::App& parent) {
 
 Registrar registrar("eval", 50, setup);
 
-}  // namespace
+}  // namespace cmd_eval
 }  // namespace ddhgs::app

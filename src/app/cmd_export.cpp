@@ -16,7 +16,7 @@
 #include "io/splat/splat.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_export {
 namespace fs = std::filesystem;
 
 struct ExportArgs {
@@ -154,5 +154,5 @@ Action setup(CLI::App& parent) {
 
 const Registrar registrar("export", 58, setup);
 
-}  // namespace
+}  // namespace cmd_export
 }  // namespace ddhgs::app

@@ -19,7 +19,7 @@
 #include "io/scene/scene_report.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_info {
 
 struct InfoArgs {
   std::string dir;
@@ -417,5 +417,5 @@ Action setup(CLI::App& parent) {
 
 Registrar registrar("info", 20, setup);
 
-}  // namespace
+}  // namespace cmd_info
 }  // namespace ddhgs::app

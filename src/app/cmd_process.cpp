@@ -16,7 +16,7 @@
 #include "process/rig.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_process {
 
 struct ProcessArgs {
   std::string cubes_dir, out, pseudo_rgb = "cie", wl_range, poses;
@@ -196,5 +196,5 @@ Action setup(CLI::App& parent) {
 
 Registrar registrar("process", 15, setup);
 
-}  // namespace
+}  // namespace cmd_process
 }  // namespace ddhgs::app

@@ -21,7 +21,7 @@
 #include "io/response/response_csv.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_render {
 namespace fs = std::filesystem;
 
 struct RenderArgs {
@@ -224,5 +224,5 @@ Action setup(CLI::App& parent) {
 
 Registrar registrar("render", 60, setup);
 
-}  // namespace
+}  // namespace cmd_render
 }  // namespace ddhgs::app

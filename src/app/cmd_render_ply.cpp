@@ -17,7 +17,7 @@
 #include "render/rasterize.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_render_ply {
 namespace fs = std::filesystem;
 
 struct RenderPlyArgs {
@@ -127,5 +127,5 @@ Action setup(CLI::App& parent) {
 
 const Registrar registrar("render-ply", 65, setup);
 
-}  // namespace
+}  // namespace cmd_render_ply
 }  // namespace ddhgs::app

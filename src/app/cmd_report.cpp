@@ -12,7 +12,7 @@
 #include "train/run_folder.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_report {
 namespace fs = std::filesystem;
 
 struct ReportArgs {
@@ -90,5 +90,5 @@ Action setup(CLI::App& parent) {
 
 Registrar registrar("report", 55, setup);
 
-}  // namespace
+}  // namespace cmd_report
 }  // namespace ddhgs::app

@@ -9,7 +9,7 @@
 #include "synth/generate.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_synth {
 
 struct SynthArgs {
   std::string preset = "demo";
@@ -120,5 +120,5 @@ Action setup(CLI::App& parent) {
 
 Registrar registrar("synth", 10, setup);
 
-}  // namespace
+}  // namespace cmd_synth
 }  // namespace ddhgs::app

@@ -13,7 +13,7 @@
 #include "train/trainer.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_train {
 
 namespace fs = std::filesystem;
 
@@ -170,5 +170,5 @@ Action setup(CLI::App& parent) {
 
 const Registrar registrar("train", 30, setup);
 
-}  // namespace
+}  // namespace cmd_train
 }  // namespace ddhgs::app

@@ -1,5 +1,8 @@
 // Subcommand registry. Each cmd_*.cpp registers itself with a static
-// Registrar, so adding a subcommand touches no shared file.
+// Registrar, so adding a subcommand touches no shared file. Each keeps its
+// code in a namespace named after its file (cmd_eval), not an anonymous one:
+// the unity build compiles several commands as one source, where their
+// `setup`, `run` and `registrar` would collide.
 #pragma once
 #include <CLI/CLI.hpp>
 
