@@ -48,6 +48,11 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   set("--light-change", c.light_change, f.light_change);
   if (!a.light_factors.empty())
     c.light_factors = parse_number_list(a.light_factors, "--light-factors");
+  set("--overlap", c.overlap, f.overlap);
+  set("--lines", c.lines, f.lines);
+  set("--side-overlap", c.side_overlap, f.side_overlap);
+  set("--altitude", c.altitude_m, f.altitude_m);
+  set("--field-spacing", c.field_spacing_m, f.field_spacing_m);
   set("--rig-perturb-deg", c.rig_perturb_deg, f.rig_perturb_deg);
   set("--rig-offset-cm", c.rig_offset_cm, f.rig_offset_cm);
   if (a.no_ground) c.ground = false;
@@ -93,6 +98,21 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--light-factors", args->light_factors,
                   "Rig presets: each capture's light factor, one per capture "
                   "(\"1,0.8,1.1,...\"), instead of drawn ones");
+  cmd->add_option("--overlap", f.overlap,
+                  "rig-nadir: forward overlap of neighbouring captures on a line (0.7: 70 % of "
+                  "a frame's length)");
+  cmd->add_option("--lines", f.lines,
+                  "rig-nadir: fly the --views captures as this many parallel lines (a grid; "
+                  "--views a multiple of it), back and forth");
+  cmd->add_option("--side-overlap", f.side_overlap,
+                  "rig-nadir: overlap of neighbouring lines, of a frame's width across them "
+                  "(default 0.6)");
+  cmd->add_option("--altitude", f.altitude_m,
+                  "rig-nadir: flying height above the ground, metres (default: three plant "
+                  "heights, about 3.5 m)");
+  cmd->add_option("--field-spacing", f.field_spacing_m,
+                  "rig-nadir: a field of plants this many metres apart (jittered) on ground "
+                  "covering every capture, instead of one plant on its disc");
   cmd->add_option("--rig-perturb-deg", f.rig_perturb_deg,
                   "rig presets: each band camera but camera 1 truly sits turned by this many "
                   "degrees (random axis) from its factory RigRelatives, which its metadata keeps");

@@ -134,6 +134,18 @@ void validate(const SynthConfig& c) {
                 "synth: expected 0 <= --rig-perturb-deg <= 10 degrees");
   core::require(c.rig_offset_cm >= 0 && c.rig_offset_cm <= 100,
                 "synth: expected 0 <= --rig-offset-cm <= 100");
+  core::require(c.lines >= 1 && c.lines <= c.views && c.views % c.lines == 0,
+                "synth: --lines " + std::to_string(c.lines) + ": expected a divisor of --views " +
+                    std::to_string(c.views));
+  core::require(c.overlap > 0 && c.overlap < 1, "synth: expected 0 < --overlap < 1");
+  core::require(c.side_overlap >= 0 && c.side_overlap < 1,
+                "synth: expected 0 <= --side-overlap < 1");
+  core::require(c.altitude_m == 0 || (c.altitude_m >= 1.5 && c.altitude_m <= 1000),
+                "synth: expected --altitude 0 (automatic) or 1.5 to 1000 m");
+  core::require(c.field_spacing_m == 0 || (c.field_spacing_m >= 1.5 && c.field_spacing_m <= 100),
+                "synth: expected --field-spacing 0 (one plant) or 1.5 to 100 m");
+  core::require(c.nadir || (c.lines == 1 && c.altitude_m == 0 && c.field_spacing_m == 0),
+                "synth: --lines, --altitude and --field-spacing need --preset rig-nadir");
   core::require(c.rig || (c.rig_perturb_deg == 0 && c.rig_offset_cm == 0),
                 "synth: --rig-perturb-deg and --rig-offset-cm need --preset rig or rig-nadir");
   // One view is rendered as float32 [H, W, B] at a time; more than this is a typo.

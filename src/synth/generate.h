@@ -40,6 +40,16 @@ struct SynthConfig {
   // ground at this forward overlap (0 < overlap < 1), instead of a ring.
   bool nadir = false;
   double overlap = 0.7;
+  // With nadir: `views` captures flown as this many parallel lines
+  // (views a multiple of lines), neighbouring lines overlapping by
+  // side_overlap of a frame's width across them; at altitude_m above the
+  // ground (0: three plant heights, as one strip is flown); and with
+  // field_spacing_m > 0, a field of plants that far apart (metres) on ground
+  // covering every capture instead of the one plant on its disc.
+  int lines = 1;
+  double side_overlap = 0.6;
+  double altitude_m = 0;
+  double field_spacing_m = 0;
   // With rig: each capture's true illumination is what its DLS reports (and
   // the panel capture saw) times a factor, as under a passing cloud the DLS
   // does not see: light_factors, one per capture, or when that is empty

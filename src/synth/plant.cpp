@@ -262,52 +262,54 @@ PlantScene PlantScene::build(uint64_t seed, bool ground) {
   return scene;
 }
 
-int PlantScene::nearest(const Ray& ray, double max_t, double* t_out, int* kind, int* index,
-                        bool any) const {
+bool PlantScene::nearest(const Ray& ray, double max_t, bool any, Nearest* out) const {
   double best = max_t;
-  int found = 0;
+  bool found = false;
+  size_t copy = 0;
   auto consider = [&](double t, int k, int i) {
     if (t > 0 && t < best) {
       best = t;
-      *kind = k;
-      *index = i;
-      found = 1;
+      *out = {t, k, i, copy};
+      found = true;
     }
   };
-  if (hits_sphere(ray, bound_centre_, bound_radius_)) {
+  for (copy = 0; copy < plants.size() && !(any && found); ++copy) {
+    // The copy's parts in its own frame: the ray moved by minus its offset.
+    const Ray local{ray.origin - plants[copy], ray.dir};
+    if (!hits_sphere(local, bound_centre_, bound_radius_)) continue;
     for (size_t i = 0; i < leaves.size() && !(any && found); ++i)
-      consider(intersect_leaf(leaves[i], ray), kLeafKind, int(i));
+      consider(intersect_leaf(leaves[i], local), kLeafKind, int(i));
     for (size_t i = 0; i < stems.size() && !(any && found); ++i)
-      consider(intersect_capsule(stems[i], ray), kCapsuleKind, int(i));
-    consider(intersect_pot(pot, ray), kPotKind, 0);
+      consider(intersect_capsule(stems[i], local), kCapsuleKind, int(i));
+    consider(intersect_pot(pot, local), kPotKind, 0);
     double k = (pot.top_radius - pot.bottom_radius) / pot.height;
-    consider(intersect_disc(pot.soil_height, pot.bottom_radius + k * pot.soil_height, ray),
+    consider(intersect_disc(pot.soil_height, pot.bottom_radius + k * pot.soil_height, local),
              kSoilKind, 0);
   }
+  copy = 0;
   if (ground) consider(intersect_disc(0.0, ground_radius, ray), kGroundKind, 0);
-  *t_out = best;
   return found;
 }
 
 bool PlantScene::intersect(const Ray& ray, SurfaceHit* hit) const {
-  double t;
-  int kind = 0, index = 0;
-  if (!nearest(ray, std::numeric_limits<double>::infinity(), &t, &kind, &index, false))
-    return false;
-  shade(ray, t, kind, index, hit);
+  Nearest found;
+  if (!nearest(ray, std::numeric_limits<double>::infinity(), false, &found)) return false;
+  shade(ray, found, hit);
   return true;
 }
 
 bool PlantScene::occluded(const Ray& ray, double max_t) const {
-  double t;
-  int kind = 0, index = 0;
-  return nearest(ray, max_t, &t, &kind, &index, true) != 0;
+  Nearest found;
+  return nearest(ray, max_t, true, &found);
 }
 
-void PlantScene::shade(const Ray& ray, double t, int kind, int index, SurfaceHit* hit) const {
-  Vec3 p = ray.origin + ray.dir * t;
+void PlantScene::shade(const Ray& ray, const Nearest& found, SurfaceHit* hit) const {
+  const double t = found.t;
+  const int kind = found.kind, index = found.index;
   hit->t = t;
-  hit->point = p;
+  hit->point = ray.origin + ray.dir * t;
+  // A plant's parts are shaded in its copy's frame, the ground in the world's.
+  const Vec3 p = kind == kGroundKind ? hit->point : hit->point - plants[found.copy];
   Vec3 normal{0, 0, 1};
   switch (kind) {
     case kLeafKind: {

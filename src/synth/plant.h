@@ -85,13 +85,22 @@ class PlantScene {
   std::vector<LeafTraits> traits;  // one per leaf
   std::vector<Capsule> stems;
   Pot pot;
+  // Where copies of the plant stand (world offsets of its pot, z = 0): one
+  // at the origin, or a field of them under a survey (synth/survey.h).
+  std::vector<core::Vec3> plants{core::Vec3{0, 0, 0}};
   bool ground = true;
   double ground_radius = 1.6;
   uint64_t seed = 0;
 
  private:
-  int nearest(const Ray& ray, double max_t, double* t, int* kind, int* index, bool any) const;
-  void shade(const Ray& ray, double t, int kind, int index, SurfaceHit* hit) const;
+  // The nearest hit's distance, kind, part and plant copy (ground: copy 0).
+  struct Nearest {
+    double t = 0;
+    int kind = 0, index = 0;
+    size_t copy = 0;
+  };
+  bool nearest(const Ray& ray, double max_t, bool any, Nearest* out) const;
+  void shade(const Ray& ray, const Nearest& found, SurfaceHit* hit) const;
   core::Vec3 bound_centre_;  // loose sphere around everything but the ground: ray culling
   double bound_radius_ = 1;
 };

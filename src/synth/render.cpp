@@ -121,34 +121,6 @@ std::vector<core::Camera> turntable_rig(const PlantScene& scene, const RigOption
   return cameras;
 }
 
-std::vector<core::Camera> nadir_strip(const PlantScene& scene, const RigOptions& options,
-                                      double overlap) {
-  core::require(options.views >= 1 && overlap > 0 && overlap < 1,
-                "synth: expected views >= 1 and 0 < overlap < 1");
-  const core::Intrinsics intr = rig_intrinsics(options);
-  // Flown at least three plant heights up, as a field is flown (the plant's
-  // top must stay in view of the neighbouring captures: from a third of the
-  // plant's height above it, a strip at 70 % overlap saw each leaf-top once),
-  // and high enough that a frame's width covers three quarters of the
-  // ground disc's radius.
-  const double height =
-      std::max(0.75 * scene.ground_radius * intr.fx / options.width, 3 * scene.box_max.z);
-  const double footprint = height * options.width / intr.fx;
-  const double step = footprint * (1 - overlap);
-  const Vec3 centre = scene.centre();
-  std::vector<core::Camera> cameras;
-  for (int i = 0; i < options.views; ++i) {
-    const double x = centre.x + (i - 0.5 * (options.views - 1)) * step;
-    const Vec3 eye{x, centre.y, height};
-    core::Camera camera;
-    camera.intrinsics = intr;
-    // Looking down (-z); image x along +x (the flight), image y along -y.
-    camera.world_to_camera = core::look_at(eye, Vec3{x, centre.y, 0}, Vec3{0, 1, 0});
-    cameras.push_back(camera);
-  }
-  return cameras;
-}
-
 Ray camera_ray(const core::Camera& camera, double x, double y) {
   const auto& k = camera.intrinsics;
   core::Mat4 c2w = camera.camera_to_world();

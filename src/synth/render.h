@@ -60,14 +60,6 @@ core::Intrinsics rig_intrinsics(const RigOptions& options);
 // views on the lower (longer) rings. Cameras use OpenCV axes, world z is up.
 std::vector<core::Camera> turntable_rig(const PlantScene& scene, const RigOptions& options);
 
-// A strip of options.views cameras looking straight down, flown along world
-// x over the scene's centre at three times the plant's height (or where the
-// frame's width covers three quarters of the ground disc's radius, if
-// higher), each frame overlapping the next by `overlap` of its
-// length along the strip (image x along the flight).
-std::vector<core::Camera> nadir_strip(const PlantScene& scene, const RigOptions& options,
-                                      double overlap);
-
 // World ray through pixel position (x, y) (pixel centres at +0.5), through
 // the camera's lens model: a distorted camera renders a distorted view.
 Ray camera_ray(const core::Camera& camera, double x, double y);

@@ -17,6 +17,7 @@
 #include "io/rig/rig_radiometry.h"
 #include "io/transforms/transforms.h"
 #include "synth/render.h"
+#include "synth/survey.h"
 
 namespace ddhgs::synth {
 namespace fs = std::filesystem;
@@ -134,8 +135,11 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     const SpectralSetup setup = make_spectral_setup(scene, wavelengths, noise);
     RigOptions options = rig_options(config);
     options.k1 = 0;  // the band images' metadata records no lens distortion
+    const Flight flight{config.lines, config.overlap, config.side_overlap, config.altitude_m};
     const std::vector<core::Camera> references =
-        config.nadir ? nadir_strip(scene, options, config.overlap) : turntable_rig(scene, options);
+        config.nadir ? nadir_survey(scene, options, flight) : turntable_rig(scene, options);
+    if (config.field_spacing_m > 0)
+      plant_field(scene, references, config.field_spacing_m, config.seed);
     const core::Intrinsics& k = references.front().intrinsics;
     const std::vector<double> light = capture_light_factors(config);
 
@@ -286,7 +290,14 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     j["fov_deg"] = config.fov_deg;
     j["rings"] = config.rings;
     j["flight"] = config.nadir ? "nadir strip" : "ring";
-    if (config.nadir) j["overlap"] = config.overlap;
+    if (config.nadir) {
+      j["overlap"] = config.overlap;
+      j["lines"] = config.lines;
+      j["side_overlap"] = config.side_overlap;
+      j["altitude_m"] = references.front().camera_to_world().translation().z;
+      j["field_spacing_m"] = config.field_spacing_m;
+      j["plants"] = scene.plants.size();
+    }
     j["light_factors"] = light;
     j["supersample"] = config.supersample;
     j["unit_m"] = 1.0;
