@@ -236,5 +236,23 @@ TEST(Init, ANaturalBorderIsNoBackdrop) {
   EXPECT_FALSE(io::masked_backdrop(*scene, scene->train).has_value());
 }
 
+// A field of two colours in a checkerboard to every edge, as many of each:
+// each channel's median is the lower value, a colour no pixel has, so no
+// border pixel lies on it (a survey's textured ground did this).
+TEST(Init, ABorderWithNoPixelOnItsMedianColourIsNoBackdrop) {
+  auto checker = [](int) {
+    const torch::Tensor y = torch::arange(kHeight).view({kHeight, 1, 1});
+    const torch::Tensor x = torch::arange(kWidth).view({1, kWidth, 1});
+    const torch::Tensor a = ((x + y) % 2).to(torch::kUInt8) * 255;  // [H, W, 1]
+    return torch::cat({a, 255 - a, torch::full_like(a, 128)}, 2);
+  };
+  auto scene = io::load_scene(write_scene("init_checker", 14.0, checker));
+  const io::BorderScan scan = io::scan_border(*scene, scene->train);
+  EXPECT_EQ(scan.share, 0);
+  EXPECT_EQ(scan.spread, 0);
+  EXPECT_FALSE(scan.masked);
+  EXPECT_NE(scan.why_not.find("0 % of the view borders"), std::string::npos) << scan.why_not;
+}
+
 }  // namespace
 }  // namespace ddhgs::train

@@ -108,7 +108,11 @@ torch::Tensor median_colour(const Scene& scene, const Borders& borders) {
 // deviations: |pixel - colour| of the border pixels on the colour, per view.
 double border_spread(const Scene& scene, const Borders& borders,
                      const std::vector<torch::Tensor>& deviations) {
-  if (deviations.empty()) return 0;
+  // No border pixel near the colour (a textured field to every edge): no
+  // spread to measure, and the share test has already said why.
+  int64_t rows = 0;
+  for (const torch::Tensor& d : deviations) rows += d.size(0);
+  if (rows == 0) return 0;
   if (!scene.band_per_view())
     return 1.4826 * std::get<0>(torch::cat(deviations, 0).median(0)).median().item<double>();
   std::vector<torch::Tensor> per_band;
@@ -118,8 +122,11 @@ double border_spread(const Scene& scene, const Borders& borders,
       const torch::Tensor at = (borders.bands[i] == band).nonzero();
       if (at.numel() > 0) columns.push_back(deviations[i].select(1, at[0][0].item<int64_t>()));
     }
-    if (!columns.empty()) per_band.push_back(std::get<0>(torch::cat(columns).median(0)));
+    const torch::Tensor band_rows = columns.empty() ? torch::Tensor() : torch::cat(columns);
+    if (band_rows.defined() && band_rows.numel() > 0)
+      per_band.push_back(std::get<0>(band_rows.median(0)));
   }
+  if (per_band.empty()) return 0;
   return 1.4826 * torch::stack(per_band).median().item<double>();
 }
 
