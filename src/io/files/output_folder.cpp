@@ -94,6 +94,8 @@ std::string to_string(OutputKind kind) {
       return "eval";
     case OutputKind::Ablation:
       return "ablation";
+    case OutputKind::Blocks:
+      return "blocks";
   }
   return "output";
 }

@@ -19,7 +19,7 @@
 
 namespace ddhgs::io {
 
-enum class OutputKind { Scene, Run, Report, Renders, Eval, Ablation };
+enum class OutputKind { Scene, Run, Report, Renders, Eval, Ablation, Blocks };
 
 // "scene", "run", ...: the word in the marker and in messages.
 std::string to_string(OutputKind kind);

@@ -14,7 +14,8 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr OutputKind kKinds[] = {OutputKind::Scene,   OutputKind::Run,  OutputKind::Report,
-                                 OutputKind::Renders, OutputKind::Eval, OutputKind::Ablation};
+                                 OutputKind::Renders, OutputKind::Eval, OutputKind::Ablation,
+                                 OutputKind::Blocks};
 constexpr const char* kPendingLine = "replacing";
 constexpr const char* kManifestLine = "manifest";
 constexpr const char* kEntryPrefix = "wrote ";

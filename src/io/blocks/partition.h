@@ -1,0 +1,40 @@
+// `ddhgs partition`: a scene cut into overlapping blocks over its ground
+// footprint, each block an ordinary scene folder (BLOCKS/block_NN/) that
+// `ddhgs train` takes, and BLOCKS/blocks.json describing the cut.
+#pragma once
+#include <filesystem>
+
+#include "io/blocks/block_grid.h"
+
+namespace ddhgs::io {
+
+struct PartitionOptions {
+  std::filesystem::path scene;  // a transforms.json scene
+  std::filesystem::path out;    // BLOCKS
+  // rows x cols cells; rows 0: `blocks` cells arranged as close to square
+  // cells as the footprint allows.
+  int rows = 0, cols = 0, blocks = 4;
+  double overlap = 0.2;  // margin on every side, of a cell's size
+  bool force = false;    // replace an earlier BLOCKS folder
+};
+
+// A view belongs to a block when at least this share of its footprint
+// lies in the block's cell and margin.
+constexpr double kViewShare = 0.25;
+
+// The rows and columns for `blocks` cells over a footprint of this size:
+// the factorisation whose cells are closest to square.
+std::pair<int, int> grid_shape(int blocks, double length_u, double length_v);
+
+// Writes BLOCKS (io::write_folder_atomically: all or nothing). Each block
+// holds the views that see its cell with the margin (kViewShare), split as
+// in the scene (train_filenames / test_filenames), the points inside its
+// cell and margin, its views' cubes, clean ground truth and images (hard
+// links where the file system allows, else copies) and the scene's other
+// top-level files (wavelengths, georeferencing, synth.json). core::Error
+// naming the file or the block: not a transforms.json scene, a frame's
+// file missing or outside the scene folder, a block without a training
+// view.
+BlocksFile partition_scene(const PartitionOptions& options);
+
+}  // namespace ddhgs::io

@@ -1,0 +1,150 @@
+// A flight larger than one machine: `ddhgs partition` cuts a synthetic
+// survey into blocks, each block trains as an ordinary scene, and `ddhgs
+// merge` joins them into a run that eval, render and export read over the
+// whole flight. Bad input leaves nothing behind.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <set>
+
+#include "io/blocks/block_grid.h"
+#include "io/files/atomic_file.h"
+#include "io/ply/ply.h"
+#include "io/scene/scene.h"
+#include "reliability/cli_support.h"
+#include "support/test_support.h"
+
+namespace ddhgs {
+namespace {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using test::ddhgs;
+
+// A 12-capture survey of two lines over a field, as registered 5-band cubes.
+const fs::path& survey() {
+  static const fs::path scene = [] {
+    const fs::path root = test::temp_dir("blocks_cli");
+    std::string out;
+    EXPECT_EQ(ddhgs("-q synth --preset rig-nadir --views 12 --lines 2 --field-spacing 1.5 "
+                    "--width 32 --height 24 --supersample 1 --out " +
+                        (root / "flight").string(),
+                    &out),
+              0)
+        << out;
+    return root / "flight" / "cubes";
+  }();
+  return scene;
+}
+
+int64_t gaussians_in_cell(const fs::path& ply, const io::BlockGrid& grid, int block) {
+  const io::GaussianPly model = io::read_gaussian_ply(ply);
+  const torch::Tensor means = model.means.to(torch::kFloat64).contiguous();
+  const double* p = means.data_ptr<double>();
+  int64_t count = 0;
+  for (int64_t g = 0; g < means.size(0); ++g) {
+    const core::Vec3 x{p[3 * g], p[3 * g + 1], p[3 * g + 2]};
+    count += grid.block_of(grid.frame.along(x), grid.frame.across(x)) == block;
+  }
+  return count;
+}
+
+TEST(BlocksCli, PartitionTrainMergeEvaluatesEveryHeldOutView) {
+  const fs::path root = test::temp_dir("blocks_cli_flow");
+  const fs::path blocks = root / "blocks", merged = root / "merged";
+  std::string out;
+  ASSERT_EQ(
+      ddhgs("partition " + survey().string() + " --blocks 2 --overlap 0.2 --out " + blocks.string(),
+            &out),
+      0)
+      << out;
+  const io::BlocksFile file = io::read_blocks_file(blocks / "blocks.json");
+  ASSERT_EQ(file.blocks.size(), 2u);
+  EXPECT_EQ(file.grid.rows * file.grid.cols, 2);
+  const auto scene = io::load_scene(survey());
+  std::set<std::string> scene_test, block_test, block_train;
+  for (int v : scene->test) scene_test.insert(scene->views[size_t(v)].name);
+  int64_t points = 0;
+  for (const io::BlockRecord& b : file.blocks) {
+    const auto block = io::load_scene(blocks / b.name);
+    EXPECT_EQ(block->train.size(), b.train_views.size());
+    EXPECT_EQ(block->test.size(), b.test_views.size());
+    EXPECT_TRUE(block->has_clean()) << b.name;
+    EXPECT_EQ(block->wavelengths_nm, scene->wavelengths_nm);
+    for (int v : block->test) block_test.insert(block->views[size_t(v)].name);
+    for (int v : block->train) block_train.insert(block->views[size_t(v)].name);
+    // Neither block holds every view: the cut is real.
+    EXPECT_LT(block->views.size(), scene->views.size()) << b.name;
+    points += b.points;
+    EXPECT_TRUE(fs::exists(blocks / b.name / "synth.json") || !fs::exists(survey() / "synth.json"));
+  }
+  // The scene's split holds in every block: no held-out view is trained on.
+  for (const std::string& name : block_test) EXPECT_TRUE(scene_test.count(name)) << name;
+  for (const std::string& name : block_train) EXPECT_FALSE(scene_test.count(name)) << name;
+  // The margins overlap: some points are in both blocks.
+  EXPECT_GT(points, scene->points.xyz.size(0));
+
+  for (const io::BlockRecord& b : file.blocks)
+    ASSERT_EQ(ddhgs("-q train " + (blocks / b.name).string() + " --out " +
+                        (blocks / b.name / "run").string() + test::kQuickTrain,
+                    &out),
+              0)
+        << out;
+  ASSERT_EQ(ddhgs("merge " + blocks.string() + " --out " + merged.string(), &out), 0) << out;
+  // Exactly each block's Gaussians in its own cell.
+  int64_t expected = 0;
+  for (size_t b = 0; b < file.blocks.size(); ++b)
+    expected += gaussians_in_cell(blocks / file.blocks[b].name / "run" / "gaussians.ply", file.grid,
+                                  int(b));
+  EXPECT_EQ(io::read_gaussian_ply(merged / "gaussians.ply").means.size(0), expected);
+  const json config = json::parse(io::read_file(merged / "config.json"));
+  EXPECT_EQ(fs::path(config["data"]["path"].get<std::string>()),
+            fs::absolute(survey()).lexically_normal());
+
+  // eval measures the whole flight's held-out views; render and export read the run.
+  ASSERT_EQ(ddhgs("-q eval " + merged.string(), &out), 0) << out;
+  const std::string per_view = io::read_file(merged / "eval" / "per_view.csv");
+  size_t measured = 0;  // a row against the views and one against the clean truth per view
+  for (size_t at = per_view.find(",views,"); at != std::string::npos;
+       at = per_view.find(",views,", at + 1))
+    ++measured;
+  EXPECT_EQ(measured, scene->test.size()) << per_view;
+  EXPECT_EQ(ddhgs("-q export " + merged.string() + " --out " + (root / "m.ply").string(), &out), 0)
+      << out;
+  EXPECT_EQ(ddhgs("-q render " + merged.string() + " --split test", &out), 0) << out;
+}
+
+TEST(BlocksCli, BadInputIsOneLineAndLeavesNothing) {
+  const fs::path root = test::temp_dir("blocks_cli_bad");
+  const fs::path out_dir = root / "blocks";
+  std::string out;
+  auto refused = [&](const std::string& args, const std::string& says) {
+    EXPECT_NE(ddhgs(args, &out), 0) << args;
+    const auto errors = test::error_lines(out);
+    ASSERT_EQ(errors.size(), 1u) << out;
+    EXPECT_NE(errors[0].find(says), std::string::npos) << errors[0];
+    EXPECT_FALSE(fs::exists(out_dir)) << args;
+    EXPECT_TRUE(test::temporaries(root).empty()) << args;
+  };
+  const std::string scene = survey().string();
+  refused("partition " + root.string() + " --out " + out_dir.string(), "transforms.json");
+  refused("partition " + scene + " --blocks 0 --out " + out_dir.string(), "--blocks");
+  refused("partition " + scene + " --blocks 2x --out " + out_dir.string(), "--blocks");
+  refused("partition " + scene + " --overlap 1.5 --out " + out_dir.string(), "--overlap");
+  refused("partition " + scene + " --blocks 400 --out " + out_dir.string(), "no training view");
+  ASSERT_EQ(ddhgs("-q partition " + scene + " --blocks 1x2 --out " + out_dir.string(), &out), 0)
+      << out;
+  // Merging untrained blocks names the missing run; nothing is written.
+  EXPECT_NE(ddhgs("merge " + out_dir.string() + " --out " + (root / "run").string(), &out), 0);
+  ASSERT_EQ(test::error_lines(out).size(), 1u) << out;
+  EXPECT_NE(out.find((out_dir / "block_00" / "run").string()), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(root / "run"));
+  // A second partition into the same folder needs --force.
+  EXPECT_NE(ddhgs("partition " + scene + " --out " + out_dir.string(), &out), 0);
+  EXPECT_NE(out.find("--force"), std::string::npos) << out;
+  EXPECT_EQ(ddhgs("-q partition " + scene + " --out " + out_dir.string() + " --force", &out), 0)
+      << out;
+}
+
+}  // namespace
+}  // namespace ddhgs

@@ -1,0 +1,134 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/error.h"
+#include "io/blocks/block_grid.h"
+#include "io/blocks/ground.h"
+#include "io/blocks/partition.h"
+#include "io/files/atomic_file.h"
+#include "support/test_support.h"
+
+namespace ddhgs::io {
+namespace {
+namespace fs = std::filesystem;
+using core::Vec3;
+
+TEST(GroundFrame, PrincipalAxesOfAStretchedTiltedCloud) {
+  // Points spread 3 : 1 : 0.1 along three known orthonormal axes.
+  const Vec3 a = Vec3{1, 1, 0}.normalized(), b = Vec3{-1, 1, 1}.normalized();
+  const Vec3 c = a.cross(b);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> normal(0, 1);
+  std::vector<Vec3> points;
+  for (int i = 0; i < 4000; ++i)
+    points.push_back(Vec3{5, -2, 1} + a * (3 * normal(rng)) + b * normal(rng) +
+                     c * (0.1 * normal(rng)));
+  const PrincipalAxes axes = principal_axes(points);
+  EXPECT_NEAR(std::abs(axes.vectors[2].dot(a)), 1, 1e-3);
+  EXPECT_NEAR(std::abs(axes.vectors[1].dot(b)), 1, 1e-3);
+  EXPECT_NEAR(std::abs(axes.vectors[0].dot(c)), 1, 1e-3);
+  EXPECT_NEAR(axes.values[2], 9, 0.5);
+  EXPECT_NEAR(axes.values[1], 1, 0.06);
+  EXPECT_NEAR(axes.values[0], 0.01, 0.001);
+  EXPECT_NEAR((axes.mean - Vec3{5, -2, 1}).norm(), 0, 0.15);
+}
+
+core::Camera nadir_camera(double x, double y, double height) {
+  core::Camera camera;
+  camera.intrinsics = {100, 100, 50, 40, 100, 80};
+  camera.world_to_camera = core::look_at({x, y, height}, {x, y, 0}, {0, 1, 0});
+  return camera;
+}
+
+TEST(GroundFrame, ANadirStripOverFlatPointsGivesTheGroundAndTheFlight) {
+  std::vector<core::Camera> cameras;
+  for (int i = 0; i < 6; ++i) cameras.push_back(nadir_camera(2.0 * i, 1, 10));
+  std::vector<Vec3> points;
+  for (int i = 0; i < 50; ++i)
+    for (int j = 0; j < 10; ++j) points.push_back({0.25 * i - 2, 0.5 * j - 1.5, 0.5});
+  const GroundFrame f = ground_frame(points, cameras);
+  EXPECT_NEAR(f.n.z, 1, 1e-9);  // up, towards the cameras
+  EXPECT_NEAR(std::abs(f.u.x), 1, 1e-9);
+  EXPECT_NEAR(f.origin.z, 0.5, 1e-9);  // on the points' plane
+  // The first camera sees 10 m x 8 m of ground from 9.5 m above it: 9.5 by 7.6.
+  const GroundBox box = view_footprint(f, cameras[0], true);
+  EXPECT_NEAR(box.u1 - box.u0, 9.5, 1e-9);
+  EXPECT_NEAR(box.v1 - box.v0, 7.6, 1e-9);
+  EXPECT_NEAR(0.5 * (box.u0 + box.u1), f.along(cameras[0].center()), 1e-9);
+}
+
+TEST(BlockGrid, CellsMarginsAndTheBlockOfAPoint) {
+  BlockGrid g;
+  g.footprint = {0, 8, -2, 2};
+  g.rows = 2;
+  g.cols = 4;
+  g.overlap = 0.25;
+  const GroundBox c = g.cell(5);  // row 1, column 1
+  EXPECT_DOUBLE_EQ(c.u0, 2);
+  EXPECT_DOUBLE_EQ(c.u1, 4);
+  EXPECT_DOUBLE_EQ(c.v0, 0);
+  EXPECT_DOUBLE_EQ(c.v1, 2);
+  const GroundBox m = g.margined(5);
+  EXPECT_DOUBLE_EQ(m.u0, 1.5);
+  EXPECT_DOUBLE_EQ(m.u1, 4.5);
+  EXPECT_DOUBLE_EQ(m.v0, -0.5);
+  EXPECT_DOUBLE_EQ(m.v1, 2.5);
+  EXPECT_EQ(g.block_of(3, 1), 5);
+  EXPECT_EQ(g.block_of(-100, -100), 0);  // beyond the footprint: the nearest edge cell
+  EXPECT_EQ(g.block_of(100, 100), 7);
+  EXPECT_EQ(g.block_of(7.9, -1), 3);
+  EXPECT_DOUBLE_EQ(m.shared(g.cell(6)), 0.5 * 2);  // 0.5 m of column 2, 2 m of row 1
+  EXPECT_EQ(grid_shape(4, 10, 10), std::make_pair(2, 2));
+  EXPECT_EQ(grid_shape(4, 40, 2), std::make_pair(1, 4));
+  EXPECT_EQ(grid_shape(6, 30, 20), std::make_pair(2, 3));
+  EXPECT_EQ(block_name(3, 4), "block_03");
+  EXPECT_EQ(block_name(7, 150), "block_007");
+}
+
+TEST(BlocksFile, RoundTripsAndRefusesMalformedFiles) {
+  const fs::path dir = test::temp_dir("blocks_file");
+  BlocksFile file;
+  file.scene = "/data/flight";
+  file.grid.frame.origin = {1, 2, 3};
+  file.grid.footprint = {0, 4, 0, 2};
+  file.grid.rows = 1;
+  file.grid.cols = 2;
+  file.blocks = {{"block_00", 0, 0, {"a.npy", "b.npy"}, {"c.npy"}, 10},
+                 {"block_01", 0, 1, {"b.npy"}, {}, 4}};
+  write_blocks_file(dir / "blocks.json", file);
+  const BlocksFile back = read_blocks_file(dir / "blocks.json");
+  EXPECT_EQ(back.scene, file.scene);
+  EXPECT_EQ(back.grid.cols, 2);
+  EXPECT_DOUBLE_EQ(back.grid.frame.origin.z, 3);
+  EXPECT_DOUBLE_EQ(back.grid.footprint.u1, 4);
+  ASSERT_EQ(back.blocks.size(), 2u);
+  EXPECT_EQ(back.blocks[0].train_views, file.blocks[0].train_views);
+  EXPECT_EQ(back.blocks[0].test_views, file.blocks[0].test_views);
+  EXPECT_EQ(back.blocks[1].points, 4);
+
+  const std::string text = read_file(dir / "blocks.json");
+  auto refused = [&](const std::string& from, const std::string& to, const std::string& says) {
+    std::string bad = text;
+    const size_t at = bad.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    bad.replace(at, from.size(), to);
+    write_file_atomically(dir / "bad.json", bad);
+    try {
+      read_blocks_file(dir / "bad.json");
+      ADD_FAILURE() << "accepted " << to;
+    } catch (const core::Error& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.json"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  refused("\"cols\": 2", "\"cols\": 3", "blocks");
+  refused("\"block_01\"", "\"../elsewhere\"", "name");
+  refused("\"ddhgs blocks\"", "\"other\"", "format");
+  refused("\"overlap\": 0.2", "\"overlap\": -1", "overlap");
+  refused("\"points\": 4", "\"points\": -4", "points");
+}
+
+}  // namespace
+}  // namespace ddhgs::io
