@@ -29,7 +29,10 @@ if [ "$with_tests" = 1 ]; then
   # PIL decodes PNG/JPEG/TIFF independently of ours; clang-format checks the
   # tree's formatting; git makes the scratch checkout that tests the commit
   # `--version` names.
-  packages+=(python3 python3-numpy python3-torch python3-pil chromium clang-format git)
+  # slurm-wlm and munge: tests/slurm/single_node_slurm.sh starts a real
+  # single-node Slurm and runs a partition's blocks as a job array.
+  packages+=(python3 python3-numpy python3-torch python3-pil chromium clang-format git
+             slurm-wlm munge)
 fi
 
 ensure_packages setup "${packages[@]}"
