@@ -114,6 +114,88 @@ TEST(BlocksCli, PartitionTrainMergeEvaluatesEveryHeldOutView) {
   EXPECT_EQ(ddhgs("-q render " + merged.string() + " --split test", &out), 0) << out;
 }
 
+// Latent blocks have bases of their own; the merged model holds them side by
+// side (and each block's mean as one more channel), so every Gaussian keeps
+// the spectrum it had in its block.
+TEST(BlocksCli, LatentBlocksKeepTheirSpectraInTheMergedModel) {
+  const fs::path root = test::temp_dir("blocks_cli_latent");
+  const fs::path blocks = root / "blocks", merged = root / "merged";
+  std::string out;
+  ASSERT_EQ(
+      ddhgs("-q partition " + survey().string() + " --blocks 1x2 --out " + blocks.string(), &out),
+      0)
+      << out;
+  const io::BlocksFile file = io::read_blocks_file(blocks / "blocks.json");
+  for (const io::BlockRecord& b : file.blocks)
+    ASSERT_EQ(ddhgs("-q train " + (blocks / b.name).string() + " --out " +
+                        (root / "runs" / b.name).string() + test::kQuickTrain +
+                        " --set model.spectral_rank=2",
+                    &out),
+              0)
+        << out;
+  ASSERT_EQ(ddhgs("-q merge " + blocks.string() + " --runs " + (root / "runs").string() +
+                      "/{block} --out " + merged.string(),
+                  &out),
+            0)
+      << out;
+  constexpr double kC0 = 0.28209479177387814;
+  const io::GaussianPly joint = io::read_gaussian_ply(merged / "gaussians.ply");
+  ASSERT_TRUE(joint.basis.defined());
+  EXPECT_EQ(joint.basis.size(1), 2 * (2 + 1));
+  EXPECT_EQ(joint.mean.abs().max().item<float>(), 0.0f);
+  const torch::Tensor joint_spectra = (joint.sh_dc * kC0).matmul(joint.basis.t());  // [G, N]
+  int64_t at = 0;
+  for (size_t b = 0; b < file.blocks.size(); ++b) {
+    const io::GaussianPly block =
+        io::read_gaussian_ply(root / "runs" / file.blocks[b].name / "gaussians.ply");
+    ASSERT_EQ(block.basis.size(1), 2);
+    const torch::Tensor means = block.means.to(torch::kFloat64);
+    std::vector<int64_t> kept;
+    for (int64_t g = 0; g < means.size(0); ++g) {
+      const core::Vec3 x{means[g][0].item<double>(), means[g][1].item<double>(),
+                         means[g][2].item<double>()};
+      if (file.grid.block_of(file.grid.frame.along(x), file.grid.frame.across(x)) == int(b))
+        kept.push_back(g);
+    }
+    const torch::Tensor index = torch::tensor(kept, torch::kInt64);
+    const torch::Tensor own =
+        (block.sh_dc.index_select(0, index) * kC0).matmul(block.basis.t()) + block.mean;
+    const torch::Tensor there = joint_spectra.narrow(0, at, int64_t(kept.size()));
+    EXPECT_TRUE(torch::allclose(there, own, 1e-5, 1e-5)) << (there - own).abs().max();
+    EXPECT_TRUE(torch::equal(joint.means.narrow(0, at, int64_t(kept.size())),
+                             block.means.index_select(0, index)));
+    at += int64_t(kept.size());
+  }
+  EXPECT_EQ(at, joint.means.size(0));
+  EXPECT_EQ(ddhgs("-q eval " + merged.string(), &out), 0) << out;
+}
+
+// The workstation flow (scripts/slurm/local.sh): every block trained by
+// xargs -P, then merged; a second call trains nothing again.
+TEST(BlocksCli, LocalScriptTrainsEveryBlockThenMerges) {
+  const fs::path root = test::temp_dir("blocks_cli_local");
+  const fs::path blocks = root / "blocks", merged = root / "merged";
+  std::string out;
+  ASSERT_EQ(
+      ddhgs("-q partition " + survey().string() + " --blocks 2 --out " + blocks.string(), &out), 0)
+      << out;
+  const std::string script = "DDHGS=" + test::ddhgs_binary() + " JOBS=2 THREADS=1 bash " +
+                             (test::source_dir() / "scripts" / "slurm" / "local.sh").string() +
+                             " " + blocks.string() + " " + merged.string() + " " +
+                             test::kQuickTrain;
+  ASSERT_EQ(test::run_command(script, &out), 0) << out;
+  for (const char* block : {"block_00", "block_01"}) {
+    EXPECT_TRUE(fs::exists(blocks / block / "run" / "gaussians.ply")) << block;
+    EXPECT_TRUE(fs::exists(root / "merged.logs" / (std::string(block) + ".log"))) << block;
+  }
+  ASSERT_TRUE(fs::exists(merged / "gaussians.ply"));
+  const auto trained = fs::last_write_time(blocks / "block_00" / "run" / "gaussians.ply");
+  fs::remove_all(merged);
+  ASSERT_EQ(test::run_command(script, &out), 0) << out;
+  EXPECT_EQ(fs::last_write_time(blocks / "block_00" / "run" / "gaussians.ply"), trained);
+  EXPECT_TRUE(fs::exists(merged / "gaussians.ply"));
+}
+
 TEST(BlocksCli, BadInputIsOneLineAndLeavesNothing) {
   const fs::path root = test::temp_dir("blocks_cli_bad");
   const fs::path out_dir = root / "blocks";
@@ -132,6 +214,13 @@ TEST(BlocksCli, BadInputIsOneLineAndLeavesNothing) {
   refused("partition " + scene + " --blocks 2x --out " + out_dir.string(), "--blocks");
   refused("partition " + scene + " --overlap 1.5 --out " + out_dir.string(), "--overlap");
   refused("partition " + scene + " --blocks 400 --out " + out_dir.string(), "no training view");
+  // A frame whose file lies outside the scene folder: a block could not hold it.
+  fs::create_directories(root / "outside");
+  std::string text = io::read_file(survey() / "transforms.json");
+  text.replace(text.find("hyperspectral/IMG_0000.npy"), 26, "../cubes/hyperspectral/IMG_0000.npy");
+  io::write_file_atomically(root / "outside" / "transforms.json", text);
+  refused("partition " + (root / "outside").string() + " --out " + out_dir.string(),
+          "frames[0]: ../cubes/hyperspectral/IMG_0000.npy lies outside the scene folder");
   ASSERT_EQ(ddhgs("-q partition " + scene + " --blocks 1x2 --out " + out_dir.string(), &out), 0)
       << out;
   // Merging untrained blocks names the missing run; nothing is written.

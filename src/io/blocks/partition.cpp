@@ -73,7 +73,6 @@ Source open_source(const fs::path& root) {
                 "partition needs a scene with a transforms.json (a COLMAP-only folder: run "
                 "ddhgs process first)");
   s.transforms = read_transforms(s.transforms_path);
-  s.scene = load_scene(root);
   const bool rgb =
       std::all_of(s.transforms.frames.begin(), s.transforms.frames.end(),
                   [](const TransformsFrame& f) { return f.hyperspectral_file_path.empty(); });
@@ -87,6 +86,7 @@ Source open_source(const fs::path& root) {
                       " (a block would lose the view)");
     by_path[(root / rel).lexically_normal().string()] = i;
   }
+  s.scene = load_scene(root);
   for (const View& v : s.scene->views) {
     const auto it = by_path.find(v.data_path.lexically_normal().string());
     core::require(it != by_path.end(), s.transforms_path, "no frame names " + v.data_path.string());
