@@ -1,0 +1,57 @@
+#!/bin/bash
+# Blocks against one model (docs/benchmarks.md, "Blocks"): a synthetic grid
+# flight (rig-nadir, 5 bands) cut into 2x2 blocks with 20 % margins, each
+# block trained with iterations in proportion to its training views (the
+# same iteration budget per Gaussian as the single run), merged, and
+# compared with one model trained on the whole flight: held-out PSNR
+# (eval), PSNR in the blocks' overlap zones and elsewhere
+# (scripts/lib/block_zones.py), peak memory and CPU time of every run.
+#
+#   scripts/blocks_benchmark.sh [OUT]
+#
+# Environment: DDHGS (default build/ddhgs), VIEWS (48), LINES (4), WIDTH
+# (96), HEIGHT (72), ITERATIONS (of the single run; 3000), PRESET (demo),
+# BLOCKS (2x2), PYTHON (a python3 with numpy; default /usr/bin/python3).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ddhgs="$(realpath "${DDHGS:-build/ddhgs}")"
+out="${1:-/tmp/ddhgs-blocks-benchmark}"
+views="${VIEWS:-48}" lines="${LINES:-4}" width="${WIDTH:-96}" height="${HEIGHT:-72}"
+iterations="${ITERATIONS:-3000}" preset="${PRESET:-demo}" grid="${BLOCKS:-2x2}"
+python="${PYTHON:-/usr/bin/python3}"
+rm -rf "$out"
+mkdir -p "$out"
+echo "date $(date -u '+%Y-%m-%d %H:%M UTC'), $(uptime | sed 's/.*load/load/')"
+
+# CPU seconds (user + system) and peak RSS (MiB) of one command, via GNU time.
+timed() {
+  local label="$1"
+  shift
+  /usr/bin/time -f "$label %U %S %M" -o "$out/$label.time" "$@"
+  awk '{printf "%s: %.1f CPU s, peak %.0f MiB\n", $1, $2 + $3, $4 / 1024}' "$out/$label.time"
+}
+
+"$ddhgs" -q synth --preset rig-nadir --views "$views" --lines "$lines" --field-spacing 2 \
+  --width "$width" --height "$height" --supersample 2 --out "$out/flight"
+scene="$out/flight/cubes"
+"$ddhgs" -q partition "$scene" --blocks "$grid" --overlap 0.2 --out "$out/blocks"
+timed single "$ddhgs" -q train "$scene" --out "$out/single" --preset "$preset" \
+  --iterations "$iterations" --checkpoint-every 0
+total=$("$ddhgs" info "$scene" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
+for block in "$out"/blocks/block_*; do
+  name="$(basename "$block")"
+  train_views=$("$ddhgs" info "$block" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
+  block_iterations=$(( (iterations * train_views + total / 2) / total ))
+  echo "$name: $train_views of $total training views, $block_iterations iterations"
+  timed "$name" "$ddhgs" -q train "$block" --out "$block/run" --preset "$preset" \
+    --iterations "$block_iterations" --checkpoint-every 0
+done
+"$ddhgs" merge "$out/blocks" --out "$out/merged"
+for run in single merged; do
+  echo "--- $run"
+  "$ddhgs" eval "$out/$run" 2>&1 | sed -n '/PSNR/,/clean/p'
+  "$ddhgs" -q render "$out/$run" --format npy
+done
+"$python" scripts/lib/block_zones.py "$scene" "$out/blocks" "$out/single" "$out/merged"
+awk '{cpu += $2 + $3} END {printf "blocks together: %.1f CPU s\n", cpu}' "$out"/block_*.time
+echo "done $(date -u '+%H:%M UTC'), $(uptime | sed 's/.*load/load/')"
