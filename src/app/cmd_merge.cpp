@@ -7,7 +7,7 @@
 #include "core/log.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_merge {
 
 struct MergeArgs {
   MergeOptions options;
@@ -43,5 +43,5 @@ Action setup(CLI::App& parent) {
 
 const Registrar registrar("merge", 36, setup);
 
-}  // namespace
+}  // namespace cmd_merge
 }  // namespace ddhgs::app

@@ -11,7 +11,7 @@
 #include "io/blocks/partition.h"
 
 namespace ddhgs::app {
-namespace {
+namespace cmd_partition {
 
 struct PartitionArgs {
   std::string blocks = "4";
@@ -77,5 +77,5 @@ Action setup(CLI::App& parent) {
 
 const Registrar registrar("partition", 35, setup);
 
-}  // namespace
+}  // namespace cmd_partition
 }  // namespace ddhgs::app

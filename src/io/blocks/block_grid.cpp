@@ -62,7 +62,7 @@ json box(const GroundBox& b) {
 }
 
 // Reads blocks.json with the file and key named in every refusal.
-struct Reader {
+struct BlocksReader {
   fs::path path;
   [[noreturn]] void fail(const std::string& key, const std::string& what) const {
     throw core::Error(path, key + ": " + what);
@@ -148,7 +148,7 @@ void write_blocks_file(const fs::path& path, const BlocksFile& file) {
 BlocksFile read_blocks_file(const fs::path& path) {
   require_regular_file(path);
   const json j = json::parse(read_file(path), nullptr, false);
-  const Reader r{path};
+  const BlocksReader r{path};
   if (j.is_discarded() || !j.is_object()) r.fail("blocks.json", "not a JSON object");
   if (!j.contains("format") || j["format"] != "ddhgs blocks")
     r.fail("format", "expected \"ddhgs blocks\" (a file written by ddhgs partition)");
