@@ -10,6 +10,7 @@
 #include "core/log.h"
 #include "core/text.h"
 #include "train/config.h"
+#include "train/stop_signal.h"
 #include "train/trainer.h"
 
 namespace ddhgs::app {
@@ -77,7 +78,7 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
 // The shell's convention for a process stopped by a signal: 128 + signal
 // (130 for Ctrl-C, 143 for SIGTERM).
 int interrupted_exit_code() {
-  const int signal = train::Trainer::stop_signal();
+  const int signal = train::stop_signal();
   return 128 + (signal > 0 ? signal : SIGINT);
 }
 

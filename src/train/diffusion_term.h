@@ -68,7 +68,7 @@ struct DiffusionTermOptions {
   bool joint = true;
   // What the fine-tuning learns from: renders of the training views by the
   // Gaussians that fitted them, or renders by an auxiliary model that did not
-  // fit the view (train/novel_views.h; Trainer::pair_renders):
+  // fit the view (train/novel_views.h, train/denoiser_pairs.h):
   //   folds: `folds` interleaved folds, each view rendered by a model trained
   //     without its fold for fold_iterations x the run's iterations;
   //   checkpoint: every view rendered by the run's own Gaussians as they were

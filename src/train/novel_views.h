@@ -2,7 +2,7 @@
 //
 // Training pairs that look like novel views: the training views are split
 // into interleaved folds, and a short auxiliary model trained without a fold
-// renders that fold's views (Trainer::pair_renders). A render of a view the
+// renders that fold's views (train/denoiser_pairs.h). A render of a view the
 // Gaussians never fitted carries the errors of a test view (interpolation
 // across the gaps between cameras), which renders of fitted training views
 // do not. Two cheaper sources, one auxiliary model each: the run's own
@@ -12,7 +12,7 @@
 //
 // Pseudo-views for distillation: cameras midway between each training camera
 // and its nearest neighbours, where the Gaussians interpolate; their denoised
-// renders become down-weighted training targets (Trainer distillation phase).
+// renders become down-weighted training targets (train/diffusion_stage.h).
 #pragma once
 #include <cstdint>
 #include <vector>

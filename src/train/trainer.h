@@ -1,16 +1,15 @@
 // The training loop of N-band Gaussian splatting: one training view
 // per iteration, weighted losses, fused Adam, adaptive density control,
 // metrics, checkpoints and bit-for-bit resume. Files: train/run_folder.h.
-// With the denoiser on, `iterations` joint steps are followed by
-// diffusion.finetune_steps steps that train the U-Net alone on cached renders
-// of the training views (Gaussians frozen); the iteration counter runs on
-// through them, and the checkpoint at the end of the joint steps is kept.
+// With the denoiser on, the diffusion stage (train/diffusion_stage.h) follows
+// the `iterations` joint steps; the iteration counter runs on through it, and
+// the checkpoint at the end of the joint steps is kept. How a trainer is made
+// (a new run, a resumed one, an auxiliary model): trainer_setup.cpp; what it
+// writes: trainer_outputs.cpp.
 #pragma once
 #include <nlohmann/json.hpp>
 
-#include <atomic>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -20,7 +19,6 @@
 #include "model/wavelength_encoder.h"
 #include "train/camera_refinement.h"
 #include "train/checkpoint.h"
-#include "train/denoiser_finetuning.h"
 #include "train/diffusion_term.h"
 #include "train/exposure_correction.h"
 #include "train/losses.h"
@@ -28,14 +26,16 @@
 #include "train/run_config.h"
 #include "train/run_folder.h"
 #include "train/schedule.h"
-#include "train/seed.h"
+#include "train/stage_host.h"
 #include "train/view_crop.h"
 
 namespace ddhgs::train {
 
 enum class TrainStatus { Finished, Interrupted };
 
-class Trainer {
+class DiffusionStage;
+
+class Trainer : private StageHost {
  public:
   // A new run: loads the scene from config["data"]["path"], initialises the
   // Gaussians, then creates the run folder (RunWriter::create; `replace` is
@@ -45,13 +45,14 @@ class Trainer {
   // Continues RUN from RUN/checkpoint.pt; iterations > 0 replaces the total.
   static std::unique_ptr<Trainer> resume(const RunPaths& run, int64_t iterations = 0);
 
+  ~Trainer();
+
   // Trains up to the configured iteration count; on SIGINT or SIGTERM (or
-  // when request_stop() is called) saves a checkpoint and returns
-  // Interrupted. When it throws, the run folder is kept if it holds a
-  // checkpoint, else removed (and a run it replaced restored).
+  // when train::request_stop() is called, train/stop_signal.h) saves a
+  // checkpoint and returns Interrupted. When it throws, the run folder is
+  // kept if it holds a checkpoint, else removed (and a run it replaced
+  // restored).
   TrainStatus run();
-  // The signal that interrupted run() (SIGINT, SIGTERM), 0 for request_stop().
-  static int stop_signal();
   // One Gaussian iteration after state().iteration, without metrics,
   // checkpoints or outputs (benchmarks); returns its metrics record.
   nlohmann::json advance();
@@ -67,14 +68,19 @@ class Trainer {
   // basis row's), or an undefined tensor when the encoder is off.
   // Differentiable.
   torch::Tensor band_offsets();
-  TrainState& state() { return state_; }
-  const io::Scene& scene() const { return *scene_; }
-  const RunConfig& config() const { return config_; }
+  TrainState& state() override { return state_; }
+  const io::Scene& scene() const override { return *scene_; }
+  const RunConfig& config() const override { return config_; }
   double extent() const { return extent_; }
 
-  static void request_stop();
-
  private:
+  // The trained modules with one row per band (Adam groups "<module>/<name>"),
+  // and the one with a row per view.
+  static constexpr const char* kColourModule = "colour_model";
+  static constexpr const char* kBackgroundModule = "background";
+  static constexpr const char* kExposureModule = "exposure";
+  class Auxiliary;  // an auxiliary model, as auxiliary() returns it
+
   Trainer(RunConfig config, RunPaths run);
   void load_scene();
   // The colour model and the networks beside the Gaussians, from the config
@@ -83,7 +89,7 @@ class Trainer {
   void create_optimizer();
   // Fresh Gaussians from the loaded scene (init section, the run's seed),
   // their densification statistics and the optimizer: a new run's, or an
-  // auxiliary model's (pair_renders).
+  // auxiliary model's (train/denoiser_pairs.h).
   void initialise();
   void set_learning_rates(int64_t iteration);
   int view_for(int64_t iteration) const;
@@ -109,16 +115,17 @@ class Trainer {
   torch::Tensor step_bands(int64_t iteration, int view) const;
   // core::selection_map of those bands; undefined for undefined bands.
   torch::Tensor band_map(const torch::Tensor& bands) const;
-  // A distillation target: a camera between training cameras and the
-  // denoised render there.
-  struct PseudoView {
-    core::Camera camera;
-    torch::Tensor target;  // [H, W, N]
-  };
   // One Gaussian iteration (1-based) on a training view, or on `pseudo` with
   // its losses scaled by diffusion.distill_weight; returns its metrics record
   // (train_psnr only where keeps_record).
-  nlohmann::json step(int64_t iteration, const PseudoView* pseudo = nullptr);
+  nlohmann::json step(int64_t iteration, const PseudoView* pseudo) override;
+  // StageHost: the run folder, renders without autograd, auxiliary models.
+  const RunPaths& run_paths() const override { return run_; }
+  torch::Tensor render_view(int view) override;
+  torch::Tensor render_camera(const core::Camera& camera) override;
+  std::unique_ptr<AuxiliaryModel> auxiliary(const RunConfig& config,
+                                            const std::vector<int>& held_out,
+                                            double perturb_px) override;
   // Whether metrics.jsonl keeps step `iteration`'s record: every
   // output.log_every and output.test_every steps, the first, the last of the
   // Gaussian iterations plus one, and the last. Only those measure the
@@ -132,29 +139,6 @@ class Trainer {
   int64_t total_steps() const;
   // The last fine-tuning step (the Gaussian iterations when there is none).
   int64_t finetune_end() const;
-  // One denoiser-only step after the Gaussian iterations (DenoiserFinetuning).
-  nlohmann::json finetune_step(int64_t iteration);
-  // Each training view rendered by an auxiliary model that did not fit it
-  // (diffusion.pairs folds, checkpoint or perturbed; train/novel_views.h),
-  // by view index.
-  std::map<int, torch::Tensor> pair_renders();
-  // One distillation step after the fine-tuning: a pseudo-view every
-  // diffusion.distill_every-th step, else a training view.
-  nlohmann::json distill_step(int64_t iteration);
-  // The pseudo-views: made (and kept in RUN/pseudo_views.pt, so a resumed
-  // run trains on the same targets) at the first distillation step, read
-  // back when resuming after it.
-  void make_pseudo_views(int64_t iteration);
-  // Makes finetuning_: the training views less the validation ones.
-  void finetune_step_setup();
-  // The fine-tuning's condition for a training view (a fold render, or the
-  // frozen Gaussians' render).
-  torch::Tensor denoiser_condition(int view);
-  // Denoises the training views the fine-tuning left out
-  // (diffusion.validation_every) and compares them with their renders:
-  // {"views", "psnr_render", "psnr_denoised"}; distillation runs only when
-  // the denoiser gained on them.
-  void validate_denoiser();
   TrainStatus run_steps();
   void save(bool numbered);
   // test_at_end: test_psnr() already taken at the last Gaussian iteration
@@ -177,21 +161,15 @@ class Trainer {
   torch::Tensor background_;  // [N]
   double extent_ = 1;
   model::WavelengthEncoder encoder_{nullptr};
-  CameraRefinement camera_refinement_{nullptr};     // camera_refinement.enabled
-  ExposureCorrection exposure_{nullptr};            // model.exposure_correction
-  RigRefinement rig_refinement_{nullptr};           // camera_refinement.rig
-  std::unique_ptr<DiffusionTerm> diffusion_;        // loss.diffusion > 0
-  torch::Tensor wavelengths01_;                     // [N] the encoder's input
-  std::unique_ptr<DenoiserFinetuning> finetuning_;  // made on its first step
-  std::map<int, torch::Tensor> pair_renders_;       // diffusion.pairs != training
-  std::vector<PseudoView> pseudo_views_;            // made on the first distillation step
-  std::vector<int> validation_views_;               // training views the denoiser leaves out
-  nlohmann::json denoiser_validation_;              // null until validate_denoiser()
-  nlohmann::json denoiser_pairs_psnr_;              // mean dB of the pairs; null until made
-  bool distilling_ = false;                         // whether to distil is decided
-  bool resuming_ = false;                           // made by resume(): the checkpoint's state
+  CameraRefinement camera_refinement_{nullptr};  // camera_refinement.enabled
+  ExposureCorrection exposure_{nullptr};         // model.exposure_correction
+  RigRefinement rig_refinement_{nullptr};        // camera_refinement.rig
+  std::unique_ptr<DiffusionTerm> diffusion_;     // loss.diffusion > 0
+  std::unique_ptr<DiffusionStage> stage_;        // with diffusion_
+  torch::Tensor wavelengths01_;                  // [N] the encoder's input
+  bool resuming_ = false;                        // made by resume(): the checkpoint's state
   int64_t resumed_rank_ = 0;  // the checkpoint's colour model (ColourModel::rank)
-  // An auxiliary model of pair_renders(): quiet about the scene; its training
+  // An auxiliary model of the denoiser's pairs: quiet about the scene; its training
   // views leave held_out_ out, and its training cameras are turned so that
   // their images move by perturb_px_ pixels.
   bool auxiliary_ = false;

@@ -1,0 +1,294 @@
+// How a Trainer is made: a new run (start), a resumed one (resume), and an
+// auxiliary model of the denoiser's pairs (auxiliary); for each, the scene,
+// the colour model and the networks beside the Gaussians, and the optimizer.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "io/files/atomic_file.h"
+#include "io/scene/backdrop.h"
+#include "train/config.h"
+#include "train/diffusion_stage.h"
+#include "train/init.h"
+#include "train/model_shape.h"
+#include "train/novel_views.h"
+#include "train/run_checks.h"
+#include "train/seed.h"
+#include "train/trainer.h"
+
+namespace ddhgs::train {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// An auxiliary Trainer as the diffusion stage sees it.
+class Trainer::Auxiliary : public AuxiliaryModel {
+ public:
+  explicit Auxiliary(std::unique_ptr<Trainer> trainer) : trainer_(std::move(trainer)) {}
+  void advance() override { trainer_->advance(); }
+  torch::Tensor render(const core::Camera& camera) override {
+    return trainer_->render_camera(camera);
+  }
+
+ private:
+  std::unique_ptr<Trainer> trainer_;
+};
+
+Trainer::Trainer(RunConfig config, RunPaths run)
+    : config_(std::move(config)), run_(std::move(run)), schedule_(schedule_of(config_)) {}
+
+std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run, bool replace) {
+  RunConfig parsed = parse_run_config(config, "config");
+  const std::vector<fs::path> inputs = {parsed.data.path};
+  RunWriter::check(run, replace, inputs);  // before the work of loading
+  std::unique_ptr<Trainer> t(new Trainer(std::move(parsed), run));
+  t->load_scene();  // before touching the output, so bad input leaves it intact
+  t->build_modules();
+  t->initialise();
+  // Every file the run will read, resolved before anything is moved: a cube
+  // inside the folder being replaced would go with it.
+  std::vector<fs::path> read = inputs;
+  for (const io::View& v : t->scene_->views) {
+    read.push_back(v.data_path);
+    if (!v.clean_path.empty()) read.push_back(v.clean_path);
+  }
+  t->writer_ = RunWriter::create(run, config, replace, read);
+  core::log_info("training " + std::to_string(t->state_.gaussians.size()) + " Gaussians x " +
+                 std::to_string(t->scene_->bands()) + " bands on " +
+                 std::to_string(t->scene_->train.size()) + " views (" +
+                 std::to_string(t->scene_->test.size()) + " held out)");
+  t->log_crops();
+  return t;
+}
+
+void Trainer::log_crops() const {
+  if (scene_->train.empty()) return;
+  const core::Intrinsics& in = scene_->views[size_t(scene_->train.front())].camera.intrinsics;
+  const double fraction = view_fraction(in.width, in.height);
+  if (fraction >= 1 || !schedule_.crops_views(1)) return;
+  char text[256];
+  std::snprintf(text, sizeof text,
+                "each step measures a random crop of about %.0f %% of its %dx%d view "
+                "(loss.view_fraction %g, on views of %lld pixels or more; 1: whole views)",
+                100 * fraction, in.width, in.height, config_.loss.view_fraction,
+                static_cast<long long>(config_.loss.view_fraction_from_pixels));
+  core::log_info(text);
+}
+
+void Trainer::initialise() {
+  InitOptions options = config_.init;
+  options.seed = mix_seed(config_.seed, 0);
+  state_.gaussians = initialise_gaussians(*scene_, options, colour_);
+  state_.stats.reset(state_.gaussians.size());
+  create_optimizer();
+}
+
+std::unique_ptr<Trainer> Trainer::resume(const RunPaths& run, int64_t iterations) {
+  std::unique_ptr<RunWriter> writer = RunWriter::reopen(run);
+  if (!fs::exists(run.checkpoint()))
+    throw core::Error(run.root,
+                      "has no checkpoint to resume from (training stopped before "
+                      "its first one); start it again with --force");
+  json config = read_run_config(run);
+  const int64_t trained = config.at("iterations").get<int64_t>();
+  if (iterations > 0) config["iterations"] = iterations;
+  std::unique_ptr<Trainer> t(new Trainer(parse_run_config(config, run.config().string()), run));
+  t->writer_ = std::move(writer);
+  t->resuming_ = true;
+  t->load_scene();
+  // Before anything is built or logged: the config must build the model the
+  // checkpoint holds.
+  CheckpointFile checkpoint = open_checkpoint(run.checkpoint());
+  const SavedModel saved = saved_model(checkpoint);
+  check_resumable(saved, t->config_, *t->scene_, run.checkpoint(), run.config());
+  t->resumed_rank_ = saved.rank;
+  t->build_modules();
+  model::AdamOptions options;
+  options.eps = t->config_.optim.adam_eps;
+  load_checkpoint(checkpoint, t->state_, options);
+  t->attach_colour();
+  if (iterations > 0 && t->state_.iteration > trained) {
+    // Past the Gaussian iterations (the denoiser was being fine-tuned): go
+    // back to their end; the fine-tuning runs again after the new total.
+    rewind_to_gaussian_end(run, trained, config);
+    core::log_info("continuing from the end of the Gaussian iterations (" +
+                   run.checkpoint_at(trained).string() +
+                   "); the denoiser is fine-tuned again afterwards");
+    auto modules = t->state_.modules;
+    t->state_ = TrainState();
+    t->state_.modules = modules;
+    CheckpointFile end = open_checkpoint(run.checkpoint());
+    check_resumable(saved_model(end), t->config_, *t->scene_, run.checkpoint(), run.config());
+    load_checkpoint(end, t->state_, options);
+    t->attach_colour();
+  } else if (iterations > 0) {
+    t->writer_->resumed(t->state_.iteration, io::read_file(run.config()));
+    io::write_file_atomically(run.config(), config.dump(2) + "\n");
+  }
+  if (t->writer_) t->writer_->saved(t->state_.iteration);  // resumed() may have said so already
+  core::log_info("resuming " + run.root.string() + " at iteration " +
+                 std::to_string(t->state_.iteration));
+  return t;
+}
+
+std::unique_ptr<AuxiliaryModel> Trainer::auxiliary(const RunConfig& config,
+                                                   const std::vector<int>& held_out,
+                                                   double perturb_px) {
+  std::unique_ptr<Trainer> t(new Trainer(config, run_));
+  t->auxiliary_ = true;
+  t->held_out_ = held_out;
+  t->perturb_px_ = perturb_px;
+  {
+    // The main run has said what loading and initialising say.
+    const core::LogLevel level = core::log_level();
+    core::set_log_level(std::min(level, core::LogLevel::Quiet));
+    struct Restore {
+      core::LogLevel level;
+      ~Restore() { core::set_log_level(level); }
+    } restore{level};
+    t->load_scene();
+    t->build_modules();
+    t->initialise();
+  }
+  return std::make_unique<Auxiliary>(std::move(t));
+}
+
+void Trainer::load_scene() {
+  const fs::path& data = config_.data.path;
+  core::require(!data.empty(), run_.config(), "data.path is empty: no dataset to train on");
+  scene_ = io::load_scene(data, config_.data.load);
+  if (!auxiliary_) {
+    io::log_scene_messages(*scene_);
+  } else {  // an auxiliary model (train/denoiser_pairs.h): the main run said it all
+    if (!held_out_.empty()) {
+      std::vector<int> train;
+      for (int v : scene_->train)
+        if (std::find(held_out_.begin(), held_out_.end(), v) == held_out_.end()) train.push_back(v);
+      scene_->train = train;
+      scene_->test = held_out_;
+    }
+    if (perturb_px_ > 0)
+      for (int v : scene_->train) {
+        // perturb_px_ pixels at the image centre, whatever the lens.
+        core::Camera& camera = scene_->views[size_t(v)].camera;
+        const double degrees = std::atan(perturb_px_ / camera.intrinsics.fx) * 180 / M_PI;
+        camera = turned(camera, degrees, mix_seed(config_.seed, kFoldStream + uint64_t(v)));
+      }
+  }
+  core::require(!scene_->train.empty(), data, "the dataset has no training views");
+  check_scene_before_training(*scene_);
+  background_ = background(config_.model, scene_->bands());
+  // A resumed run's learned background comes from its checkpoint.
+  if (config_.model.background_from_views && !(resuming_ && config_.model.learn_background)) {
+    // Only a masked capture's backdrop: a field's or a room's border is
+    // scenery, which the Gaussians draw.
+    const io::BorderScan border = io::scan_border(*scene_, scene_->train);
+    if (border.masked) {
+      background_ = border.colour;
+      core::log_info("background starts from the training views' backdrop (" +
+                     io::describe_colour(background_) + ")");
+    } else {
+      core::log_info(
+          "background starts from model.background: the views show no uniform "
+          "backdrop (" +
+          border.why_not + ")");
+    }
+  }
+  extent_ = scene_extent(*scene_, scene_->train);
+  const LossConfig& loss = config_.loss;
+  losses_ = baseline_losses(loss.l1, loss.dssim);
+  losses_.push_back(spectral_term(loss.spectral, loss.spectral_options));
+}
+
+void Trainer::build_modules() {
+  colour_ = resuming_ ? resumed_colour_model(*scene_, resumed_rank_)
+                      : initial_colour_model(*scene_, config_.model.spectral_rank,
+                                             config_.model.subspace_from_bands);
+  if (colour_.latent()) {
+    colour_module_ = std::make_shared<torch::nn::Module>();
+    colour_.basis = colour_module_->register_parameter("basis", colour_.basis.clone());
+    colour_.mean = colour_module_->register_parameter("mean", colour_.mean.clone());
+    add_module(kColourModule, colour_module_, config_.optim.basis_lr);
+  }
+  const WavelengthEncoderConfig& we = config_.wavelength_encoder;
+  if (we.enabled) {
+    // Its initial weights come from the run's seed (the last layer is zero).
+    torch::manual_seed(mix_seed(config_.seed, kEncoderInitStream));
+    model::WavelengthEncoderOptions network = we.network;
+    network.sh_coeffs = int(colour_.encoder_width(network.sh_coeffs));
+    encoder_ = model::WavelengthEncoder(network);
+    wavelengths01_ = model::normalise_wavelengths(scene_->wavelengths_nm);
+    add_module("wavelength_encoder", encoder_.ptr(), we.lr);
+  }
+  if (config_.model.learn_background) {
+    // A constant backdrop is otherwise drawn by Gaussians wherever the
+    // training views leave room, e.g. right in front of a held-out camera.
+    background_module_ = std::make_shared<torch::nn::Module>();
+    background_ = background_module_->register_parameter("value", background_.clone());
+    add_module(kBackgroundModule, background_module_, config_.optim.background_lr);
+  }
+  if (config_.camera_refinement.enabled) {
+    camera_refinement_ = CameraRefinement(int64_t(scene_->views.size()), scene_->train);
+    add_module("camera_refinement", camera_refinement_.ptr(),
+               config_.camera_refinement.rotation_lr);
+  }
+  const ExposureMode exposure = config_.model.exposure_correction;
+  if (exposure == ExposureMode::On || (exposure == ExposureMode::Auto && scene_->band_per_view())) {
+    exposure_ = ExposureCorrection(trained_entries(*scene_));
+    if (!auxiliary_)
+      core::log_info(std::string("exposure correction: each training view learns a gain per band "
+                                 "for its capture's light (model.exposure_correction ") +
+                     (exposure == ExposureMode::On ? "on" : "auto: a band-per-view scene") +
+                     "); held-out views, renders and exports are not corrected");
+    add_module(kExposureModule, exposure_.ptr(), config_.optim.exposure_lr);
+    losses_.push_back({"exposure_prior", config_.loss.exposure_prior, [this](const LossInputs& in) {
+                         return in.view < 0 ? torch::zeros({}) : exposure_->prior(in.view);
+                       }});
+  }
+  if (config_.camera_refinement.rig) {
+    rig_refinement_ = RigRefinement(*scene_);
+    add_module("rig_refinement", rig_refinement_.ptr(), config_.camera_refinement.rig_rotation_lr);
+  }
+  const DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());
+  if (diffusion.enabled()) {
+    // The denoiser sees every band of a view at once; a view that holds one
+    // band has no such image.
+    if (scene_->band_per_view())
+      throw core::Error(scene_->root,
+                        "is a band-per-view scene (each view holds some of the bands); the "
+                        "diffusion stage needs every band of a view: train it with "
+                        "loss.diffusion=0");
+    diffusion_ =
+        std::make_unique<DiffusionTerm>(diffusion, mix_seed(config_.seed, kDenoiserInitStream));
+    add_module("denoiser", diffusion_->denoiser().unet.ptr(), diffusion.lr);
+    if (diffusion.joint) losses_.push_back(diffusion_->loss_term());
+    StageHost& host = *this;
+    stage_ = std::make_unique<DiffusionStage>(host, *diffusion_);
+  }
+}
+
+void Trainer::add_module(const std::string& name, std::shared_ptr<torch::nn::Module> module,
+                         double lr) {
+  for (const auto& m : state_.modules)
+    if (m.name == name) throw core::Error("trainer: module '" + name + "' added twice");
+  state_.modules.push_back({name, std::move(module), lr});
+}
+
+void Trainer::attach_colour() {
+  // The module's parameters are loaded in place, so these are still its own.
+  state_.gaussians.colour = colour_;
+}
+
+void Trainer::create_optimizer() {
+  model::AdamOptions options;
+  options.eps = config_.optim.adam_eps;
+  state_.adam = model::Adam(options);
+  auto tensors = state_.gaussians.tensors();
+  for (size_t i = 0; i < tensors.size(); ++i)
+    state_.adam.add(model::Gaussians::tensor_names()[i], *tensors[i], 0.0);
+  for (const auto& m : state_.modules) add_module_groups(state_.adam, m);
+}
+
+}  // namespace ddhgs::train
