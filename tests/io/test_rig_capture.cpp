@@ -120,3 +120,47 @@ TEST(RigCapture, AngleToTheReferenceCamera) {
 
 }  // namespace
 }  // namespace ddhgs::io
+
+namespace ddhgs::io {
+namespace {
+
+// EXIF GPS as the synthetic rig writes it: read back here to well under a
+// millimetre (EXIF rationals of degrees, minutes, seconds), in every
+// hemisphere and below sea level, and by GDAL (gdalinfo's EXIF metadata), a
+// reader that is not ours.
+TEST(RigCapture, GpsPositionReadsBackAsWritten) {
+  const fs::path dir = test::temp_dir("rig_gps");
+  const double positions[][3] = {{52.123456789, 5.987654321, 112.25}, {-33.8688, -70.6693, -12.5}};
+  int i = 0;
+  for (const auto& p : positions) {
+    RigBandImage b;
+    b.file = dir / ("IMG_000" + std::to_string(i++) + "_1.tif");
+    b.capture_id = "gps";
+    b.rig_index = 1;
+    b.band_name = "Blue";
+    b.centre_nm = 475;
+    b.fwhm_nm = 32;
+    b.width = 8;
+    b.height = 6;
+    b.has_position = true;
+    b.latitude_deg = p[0];
+    b.longitude_deg = p[1];
+    b.altitude_m = p[2];
+    write_rig_band_image(b, torch::full({b.height, b.width}, 1000.0));
+    const RigBandImage r = read_rig_band_image(b.file);
+    ASSERT_TRUE(r.has_position);
+    // 1e-9 degrees is 0.1 mm on the ground.
+    EXPECT_NEAR(r.latitude_deg, p[0], 1e-9);
+    EXPECT_NEAR(r.longitude_deg, p[1], 1e-9);
+    EXPECT_NEAR(r.altitude_m, p[2], 1e-6);
+  }
+  std::string out;
+  ASSERT_EQ(test::run_command("gdalinfo -mdd EXIF " + (dir / "IMG_0000_1.tif").string(), &out), 0) << out;
+  EXPECT_NE(out.find("EXIF_GPSLatitudeRef=N"), std::string::npos) << out;
+  EXPECT_NE(out.find("EXIF_GPSLatitude=(52) (7) (24.4444"), std::string::npos) << out;
+  EXPECT_NE(out.find("EXIF_GPSLongitude=(5) (59) (15.5556"), std::string::npos) << out;
+  EXPECT_NE(out.find("EXIF_GPSAltitude=(112.25)"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace ddhgs::io

@@ -176,6 +176,9 @@ void read_gps(TIFF* tif, uint64_t offset, RigBandImage* image) {
   if (core::lower(text_tag(tif, GPSTAG_LATITUDEREF)) == "s") image->latitude_deg *= -1;
   if (core::lower(text_tag(tif, GPSTAG_LONGITUDEREF)) == "w") image->longitude_deg *= -1;
   image->altitude_m = real_tag(tif, GPSTAG_ALTITUDE);
+  uint8_t below_sea_level = 0;
+  if (TIFFGetField(tif, GPSTAG_ALTITUDEREF, &below_sea_level) == 1 && below_sea_level == 1)
+    image->altitude_m *= -1;
   image->has_position = true;
 }
 
@@ -622,6 +625,39 @@ std::string xmp_of(const RigBandImage& b) {
   return out + "</rdf:Description></rdf:RDF></x:xmpmeta>";
 }
 
+// A rational triple of the GPS directory, in the width this libtiff takes.
+bool set_gps_triple(TIFF* tif, uint32_t tag, const double values[3]) {
+  const TIFFField* field = TIFFFieldWithTag(tif, tag);
+  if (!field) return false;
+  if (TIFFFieldSetGetSize(field) == 8) return TIFFSetField(tif, tag, values) == 1;
+  const float narrow[3] = {float(values[0]), float(values[1]), float(values[2])};
+  return TIFFSetField(tif, tag, narrow) == 1;
+}
+
+// Degrees as EXIF writes them: whole degrees, whole minutes, seconds.
+void degrees_minutes_seconds(double degrees, double out[3]) {
+  degrees = std::abs(degrees);
+  out[0] = std::floor(degrees);
+  out[1] = std::floor((degrees - out[0]) * 60);
+  out[2] = ((degrees - out[0]) * 60 - out[1]) * 60;
+}
+
+// The GPS directory's position: latitude, longitude and altitude with their
+// references, as read_gps reads them.
+bool write_gps(TIFF* tif, const RigBandImage& image) {
+  double lat[3], lon[3];
+  degrees_minutes_seconds(image.latitude_deg, lat);
+  degrees_minutes_seconds(image.longitude_deg, lon);
+  const uint8_t version[4] = {2, 3, 0, 0};
+  return TIFFSetField(tif, GPSTAG_VERSIONID, version) == 1 &&
+         TIFFSetField(tif, GPSTAG_LATITUDEREF, image.latitude_deg < 0 ? "S" : "N") == 1 &&
+         set_gps_triple(tif, GPSTAG_LATITUDE, lat) &&
+         TIFFSetField(tif, GPSTAG_LONGITUDEREF, image.longitude_deg < 0 ? "W" : "E") == 1 &&
+         set_gps_triple(tif, GPSTAG_LONGITUDE, lon) &&
+         TIFFSetField(tif, GPSTAG_ALTITUDEREF, uint8_t(image.altitude_m < 0 ? 1 : 0)) == 1 &&
+         TIFFSetField(tif, GPSTAG_ALTITUDE, std::abs(image.altitude_m)) == 1;
+}
+
 // image.file as a single-band 16-bit TIFF of counts, with `xmp` (none when
 // empty) and the EXIF image's metadata asks for.
 void write_band(const RigBandImage& image, const torch::Tensor& counts, const std::string& xmp) {
@@ -650,6 +686,7 @@ void write_band(const RigBandImage& image, const torch::Tensor& counts, const st
   }
   const bool exif = r.exposure_s > 0 || r.iso_speed > 0 || image.px_per_mm > 0;
   if (exif) TIFFSetField(tif, TIFFTAG_EXIFIFD, uint64_t(0));  // its place; filled in below
+  if (image.has_position) TIFFSetField(tif, TIFFTAG_GPSIFD, uint64_t(0));
   std::vector<uint16_t> row(width);
   bool ok = true;
   for (uint32_t y = 0; y < height && ok; ++y) {
@@ -657,8 +694,8 @@ void write_band(const RigBandImage& image, const torch::Tensor& counts, const st
     ok = TIFFWriteScanline(tif, row.data(), y, 0) == 1;
   }
   ok = ok && TIFFWriteDirectory(tif) == 1;
-  if (ok && exif) {
-    uint64_t offset = 0;
+  uint64_t exif_offset = 0, gps_offset = 0;
+  if (ok && exif)
     ok = TIFFCreateEXIFDirectory(tif) == 0 &&
          TIFFSetField(tif, EXIFTAG_EXPOSURETIME, r.exposure_s) == 1 &&
          TIFFSetField(tif, EXIFTAG_ISOSPEED, uint32_t(std::lround(r.iso_speed))) == 1 &&
@@ -666,9 +703,15 @@ void write_band(const RigBandImage& image, const torch::Tensor& counts, const st
           (TIFFSetField(tif, EXIFTAG_FOCALPLANEXRESOLUTION, image.px_per_mm) == 1 &&
            TIFFSetField(tif, EXIFTAG_FOCALPLANEYRESOLUTION, image.px_per_mm) == 1 &&
            TIFFSetField(tif, EXIFTAG_FOCALPLANERESOLUTIONUNIT, uint16_t(4)) == 1)) &&
-         TIFFWriteCustomDirectory(tif, &offset) == 1 && TIFFSetDirectory(tif, 0) == 1 &&
-         TIFFSetField(tif, TIFFTAG_EXIFIFD, offset) == 1 && TIFFRewriteDirectory(tif) == 1;
-  }
+         TIFFWriteCustomDirectory(tif, &exif_offset) == 1;
+  if (ok && image.has_position)
+    ok = TIFFCreateGPSDirectory(tif) == 0 && write_gps(tif, image) &&
+         TIFFWriteCustomDirectory(tif, &gps_offset) == 1;
+  if (ok && (exif || image.has_position))
+    ok = TIFFSetDirectory(tif, 0) == 1 &&
+         (!exif || TIFFSetField(tif, TIFFTAG_EXIFIFD, exif_offset) == 1) &&
+         (!image.has_position || TIFFSetField(tif, TIFFTAG_GPSIFD, gps_offset) == 1) &&
+         TIFFRewriteDirectory(tif) == 1;
   TIFFClose(tif);
   if (!ok) {
     std::error_code ec;
