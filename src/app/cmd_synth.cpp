@@ -4,6 +4,7 @@
 
 #include "app/number_list.h"
 #include "app/registry.h"
+#include "core/error.h"
 #include "core/log.h"
 #include "io/files/output_folder.h"
 #include "synth/generate.h"
@@ -19,6 +20,7 @@ struct SynthArgs {
   bool no_ground = false;
   bool noisy_edges = false;
   std::string light_factors;  // comma-separated, one per capture
+  std::string gps_origin;     // LAT,LON
 };
 
 // Copies each given flag onto the preset's configuration.
@@ -55,6 +57,13 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   set("--field-spacing", c.field_spacing_m, f.field_spacing_m);
   set("--rig-perturb-deg", c.rig_perturb_deg, f.rig_perturb_deg);
   set("--rig-offset-cm", c.rig_offset_cm, f.rig_offset_cm);
+  if (!a.gps_origin.empty()) {
+    const std::vector<double> origin = parse_number_list(a.gps_origin, "--gps-origin");
+    core::require(origin.size() == 2, "--gps-origin",
+                  "expected LAT,LON in degrees, e.g. 51.8091,-0.3727");
+    c.gps_latitude_deg = origin[0];
+    c.gps_longitude_deg = origin[1];
+  }
   if (a.no_ground) c.ground = false;
   if (a.noisy_edges) c.noisy_edges = true;
   return c;
@@ -119,6 +128,11 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--rig-offset-cm", f.rig_offset_cm,
                   "rig presets: each band camera but camera 1 truly sits this many cm (metres "
                   "are scene units) from camera 1, across the rig's face");
+  cmd->add_option("--gps-origin", args->gps_origin,
+                  "rig presets: the world origin's WGS84 latitude and longitude (LAT,LON "
+                  "degrees; default 51.8091,-0.3727, a field in England, ground 120 m above the "
+                  "ellipsoid); every capture's EXIF GPS is its true position from there (world "
+                  "x east, y north, metres)");
   cmd->add_flag("--no-ground", args->no_ground, "Leave out the ground disc");
   cmd->add_flag("--noisy-edges", args->noisy_edges, "Much noisier edge bands (ablations)");
   return [args, cmd] {

@@ -117,6 +117,11 @@ void validate(const SynthConfig& c) {
                     c.min_elevation_deg <= c.max_elevation_deg,
                 "synth: expected -90 < --elevation-min <= --elevation-max < 90 degrees");
   core::require(c.point_jitter >= 0, "synth: expected --point-jitter >= 0");
+  // UTM's range, which world_placement (synth/geo_truth.h) needs.
+  core::require(
+      c.gps_latitude_deg >= -80 && c.gps_latitude_deg <= 84 && std::abs(c.gps_longitude_deg) <= 180,
+      "synth: expected --gps-origin within latitude -80 to 84 and longitude -180 to "
+      "180 degrees (UTM's range)");
   core::require(c.light_change >= 0 && c.light_change < 1,
                 "synth: expected 0 <= --light-change < 1");
   core::require(c.light_change == 0 || c.light_factors.empty(),

@@ -64,6 +64,13 @@ struct SynthConfig {
   // units are metres.
   double rig_perturb_deg = 0;
   double rig_offset_cm = 0;
+  // With rig: where the world's origin lies on the earth (WGS84 degrees;
+  // the ground z = 0 at gps_ground_m above the ellipsoid): each capture's
+  // EXIF GPS is its true position from there, world x east and y north in
+  // metres of the origin's UTM zone (synth/geo_truth.h). By default a
+  // field of Rothamsted Research, England.
+  double gps_latitude_deg = 51.8091, gps_longitude_deg = -0.3727;
+  double gps_ground_m = 120;
 
   std::vector<double> wavelengths_nm() const;
 };

@@ -129,9 +129,14 @@ Ray camera_ray(const core::Camera& camera, double x, double y) {
   return {c2w.translation(), (c2w.rotation() * d).normalized()};
 }
 
-torch::Tensor render_clean(const PlantScene& scene, const SpectralSetup& setup,
-                           const core::Camera& camera, int supersample) {
-  const int w = camera.intrinsics.width, h = camera.intrinsics.height, n = setup.bands();
+namespace {
+
+// The clean signal [H, W, N] of the rays ray_at(x, y) hands back for pixel
+// positions (x, y), supersample x supersample of them per pixel.
+template <typename RayAt>
+torch::Tensor render_rays(const PlantScene& scene, const SpectralSetup& setup, int w, int h,
+                          int supersample, const RayAt& ray_at) {
+  const int n = setup.bands();
   const int ss = std::max(1, supersample);
   auto out = torch::empty({h, w, n}, torch::kFloat32);
   float* data = out.data_ptr<float>();
@@ -145,7 +150,7 @@ torch::Tensor render_clean(const PlantScene& scene, const SpectralSetup& setup,
         std::fill(acc.begin(), acc.end(), 0.0f);
         for (int sy = 0; sy < ss; ++sy)
           for (int sx = 0; sx < ss; ++sx) {
-            Ray ray = camera_ray(camera, x + (sx + 0.5) / ss, y + (sy + 0.5) / ss);
+            const Ray ray = ray_at(x + (sx + 0.5) / ss, y + (sy + 0.5) / ss);
             SurfaceHit hit;
             if (!scene.intersect(ray, &hit)) {
               const float* bg = table + kBackground * n;
@@ -174,6 +179,26 @@ torch::Tensor render_clean(const PlantScene& scene, const SpectralSetup& setup,
       }
   });
   return out;
+}
+
+}  // namespace
+
+torch::Tensor render_clean(const PlantScene& scene, const SpectralSetup& setup,
+                           const core::Camera& camera, int supersample) {
+  return render_rays(scene, setup, camera.intrinsics.width, camera.intrinsics.height, supersample,
+                     [&camera](double x, double y) { return camera_ray(camera, x, y); });
+}
+
+torch::Tensor render_orthographic(const PlantScene& scene, const SpectralSetup& setup,
+                                  const OrthoGrid& grid, int supersample) {
+  core::require(grid.width > 0 && grid.height > 0 && grid.pixel > 0,
+                "synth: an orthographic grid needs a positive size and pixel");
+  // Straight down from above everything the scene holds.
+  const double top = scene.box_max.z + 1;
+  return render_rays(
+      scene, setup, grid.width, grid.height, supersample, [&grid, top](double x, double y) {
+        return Ray{{grid.left + x * grid.pixel, grid.top - y * grid.pixel, top}, {0, 0, -1}};
+      });
 }
 
 torch::Tensor add_noise(const torch::Tensor& clean, const SpectralSetup& setup,

@@ -68,6 +68,19 @@ Ray camera_ray(const core::Camera& camera, double x, double y);
 torch::Tensor render_clean(const PlantScene& scene, const SpectralSetup& setup,
                            const core::Camera& camera, int supersample);
 
+// A north-up grid over the ground (world x east, y north, z up): pixel
+// (col, row)'s corner at (left + col pixel, top - row pixel), scene units.
+struct OrthoGrid {
+  double left = 0, top = 0, pixel = 0;
+  int width = 0, height = 0;
+};
+
+// The clean signal [H, W, N] seen straight down (rays along -z, one view
+// direction for every pixel) over the grid: the orthographic truth of a
+// survey, shaded as render_clean shades a nadir view.
+torch::Tensor render_orthographic(const PlantScene& scene, const SpectralSetup& setup,
+                                  const OrthoGrid& grid, int supersample);
+
 // Noisy copy of clean [H, W, N]: per-band shot + read noise (NoiseModel), clamped to [0, 1].
 torch::Tensor add_noise(const torch::Tensor& clean, const SpectralSetup& setup,
                         std::mt19937_64& rng);

@@ -16,6 +16,7 @@
 #include "io/rig/rig_capture.h"
 #include "io/rig/rig_radiometry.h"
 #include "io/transforms/transforms.h"
+#include "synth/geo_truth.h"
 #include "synth/render.h"
 #include "synth/survey.h"
 
@@ -142,6 +143,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
       plant_field(scene, references, config.field_spacing_m, config.seed);
     const core::Intrinsics& k = references.front().intrinsics;
     const std::vector<double> light = capture_light_factors(config);
+    const WorldPlacement place = world_placement(config);
 
     // The panel capture as one is taken in the field: a grey panel (radiance
     // albedo x irradiance / pi) lying off-centre on textured tarmac, a
@@ -243,6 +245,12 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         const torch::Tensor noisy = noisy_all.select(2, int64_t(i)).contiguous();
         io::RigBandImage b = band_metadata(band, k, "capture" + std::to_string(c), 0.0004);
         b.file = tmp / "captures" / band_file(stem, band.index);
+        // The rig's GPS: where camera 1 (the reference pose) truly is.
+        const GpsFix fix = gps_fix(place, references[size_t(c)].camera_to_world().translation());
+        b.has_position = true;
+        b.latitude_deg = fix.latitude_deg;
+        b.longitude_deg = fix.longitude_deg;
+        b.altitude_m = fix.altitude_m;
         // The clean value is the reflectance factor a perfect conversion
         // recovers: radiance = value x irradiance / pi, under the capture's
         // own light (its factor), which the DLS record does not show.
@@ -279,6 +287,16 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     io::write_transforms(tmp / "truth" / "transforms.json", truth);
     io::write_point_ply(tmp / "cubes" / "points.ply", cloud);
     io::write_transforms(tmp / "cubes" / "transforms.json", cubes);
+    // A survey's truths: the clean scene straight down over the flight's
+    // footprint, and marks on the ground, in the projected CRS.
+    OrthoGrid grid;
+    if (config.nadir) {
+      grid = flight_footprint(references);
+      io::write_npy(tmp / "truth" / "ortho.npy",
+                    render_orthographic(scene, setup, grid, config.supersample)
+                        .index_select(2, band_order)
+                        .contiguous());
+    }
 
     nlohmann::json j;
     j["generator"] = "ddhgs synth";
@@ -325,6 +343,21 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
       albedo.push_back(b.panel_albedo);
     }
     j["cameras"] = cameras;
+    j["georeference"] = {
+        {"gps_origin_deg", {config.gps_latitude_deg, config.gps_longitude_deg}},
+        {"epsg", place.zone.epsg()},
+        {"world_origin_crs_m", {place.easting_m, place.northing_m, place.height_m}},
+        {"world_to_crs",
+         "easting = x + world_origin_crs_m[0], northing = y + [1], height = z + [2]"}};
+    if (config.nadir) {
+      j["ortho"] = {{"file", "truth/ortho.npy"},
+                    {"epsg", place.zone.epsg()},
+                    {"geotransform", geotransform(place, grid)},
+                    {"width", grid.width},
+                    {"height", grid.height},
+                    {"wavelengths_nm", truth.wavelengths_nm}};
+      j["ground_control_points"] = ground_control_points(place, grid, scene.ground_radius);
+    }
     j["panel_albedo"] = albedo;
     io::write_file_atomically(tmp / "synth.json", j.dump(2) + "\n");
     result.views = int(references.size() * rig.size());
