@@ -188,6 +188,18 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r, const B
                          {"whitened_signal_rank", spectra.whitened_rank},
                          {"views", spectra.views},
                          {"pixels", spectra.samples}};
+  if (scene.georef) {
+    const io::Georeference& g = *scene.georef;
+    const core::Similarity& s = g.scene_to_crs;
+    j["georef"] = {{"epsg", g.epsg},
+                   {"metres_per_unit", s.scale},
+                   {"translation_m", {s.translation.x, s.translation.y, s.translation.z}},
+                   {"gps_captures", g.captures},
+                   {"gps_rms_m", g.rms_m},
+                   {"gps_worst_m", g.worst_m},
+                   {"gps_worst_capture", g.worst_capture},
+                   {"orientation_from", g.orientation_from}};
+  }
   j["notes"] = scene.notes;
   j["warnings"] = scene.warnings;
   j["errors"] = r.errors;
@@ -246,7 +258,11 @@ void print_text(const io::Scene& scene, const io::SceneReport& r, const BorderCh
       << ", field of view " << fixed1(r.fov_x_deg) << " x " << fixed1(r.fov_y_deg) << " deg\n"
       << "spacing     " << spacing_line(r.spacing) << "\n"
       << "backdrop    " << backdrop_line(border) << "\n"
-      << "spectra     " << spectra_line(spectra) << "\n";
+      << "spectra     " << spectra_line(spectra) << "\n"
+      << "georef      "
+      << (scene.georef ? io::describe_georeference(*scene.georef)
+                       : std::string("none (no georef.json: not placed on the earth)"))
+      << "\n";
   for (const auto& note : scene.notes) out << "  note: " << note << "\n";
   if (scene.warnings.empty() && r.errors.empty()) {
     out << "problems    none\n";

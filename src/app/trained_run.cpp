@@ -130,6 +130,9 @@ TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_ove
         v.camera =
             io::corrected_band_camera(v.camera, run.scene->rig->turn(v.rig_camera), it->second);
   }
+  // The georeference the run was trained with, over the scene's (which may
+  // have been processed again since).
+  if (fs::exists(paths.georef())) run.scene->georef = io::read_georeference(paths.georef());
   run.gaussians = model::from_ply(model.ply);
   run.background = model.background;
   const fs::path denoiser = train::denoiser_path(paths);

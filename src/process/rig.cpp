@@ -21,6 +21,7 @@
 #include "io/rig/rig_radiometry.h"
 #include "io/scene/scene.h"
 #include "io/transforms/transforms.h"
+#include "process/georeference.h"
 
 namespace ddhgs::process {
 namespace fs = std::filesystem;
@@ -67,6 +68,56 @@ void write_panel_picture(const fs::path& path, const torch::Tensor& counts,
     rgb.select(2, 2).masked_fill_(edge, 0);
   }
   io::write_png(path, rgb);
+}
+
+// The scene's georeference from the posed captures' GPS (the reference
+// camera's centre; a rig's cameras share one GPS) and, for a single strip,
+// the rig's viewing axis; nullopt, with a note, when the captures carry none.
+template <typename ReferenceOf>
+std::optional<io::Georeference> georeference_from_gps(
+    const std::vector<const io::RigCapture*>& posed,
+    const std::map<std::string, const io::ColmapImage*>& pose_of, const io::ColmapModel& model,
+    const ReferenceOf& reference_of) {
+  std::vector<GpsCapture> located;
+  std::vector<std::string> without;
+  for (const io::RigCapture* capture : posed) {
+    const io::RigBandImage& ref = *reference_of(*capture);
+    if (!ref.has_position) {
+      without.push_back(capture->id);
+      continue;
+    }
+    const core::Camera camera = io::colmap_camera(model, *pose_of.at(ref.file.stem().string()));
+    // The rig's own axis (the frame its RigRelatives are given in), which the
+    // nadir assumption is about, turned back from the posed camera's.
+    const core::Vec3 rig_axis =
+        camera.camera_to_world().rotation() *
+        (io::rig_relative_rotation(ref.rig_relatives_deg) * core::Vec3{0, 0, 1});
+    located.push_back({capture->id, ref.latitude_deg, ref.longitude_deg, ref.altitude_m,
+                       camera.center(), rig_axis});
+  }
+  if (located.empty()) {
+    core::log_info("process: the captures carry no GPS; the scene is not georeferenced");
+    return std::nullopt;
+  }
+  if (!without.empty())
+    core::log_warn("process: " + std::to_string(without.size()) + " posed captures carry no GPS (" +
+                   without.front() + (without.size() > 1 ? ", ..." : "") +
+                   "); the georeference is fitted to the others");
+  if (located.size() < 3) {
+    core::log_warn("process: only " + std::to_string(located.size()) +
+                   " posed captures carry GPS; at least 3 are needed: the scene is not "
+                   "georeferenced");
+    return std::nullopt;
+  }
+  try {
+    const io::Georeference georef = fit_georeference(located);
+    core::log_info("process: georeferenced to " + io::describe_georeference(georef));
+    return georef;
+  } catch (const core::Error& e) {
+    // GPS without a fix (every capture at one place) must not cost the scene.
+    core::log_warn(std::string("process: the scene is not georeferenced: ") + e.what());
+    return std::nullopt;
+  }
 }
 
 }  // namespace
@@ -284,6 +335,9 @@ ProcessResult process_rig(const RigProcessOptions& options) {
             .push_back(frame.hyperspectral_file_path);
       }
     }
+    const std::optional<io::Georeference> georef =
+        georeference_from_gps(posed, pose_of, model, reference_of);
+    if (georef) write_georeference(tmp / io::kGeorefFile, *georef);
     // The rig as its metadata describes it, for training's per-camera
     // corrections (camera_refinement.rig); metres per unit when the given
     // poses say it.
@@ -350,7 +404,8 @@ ProcessResult process_rig(const RigProcessOptions& options) {
                             ? "DLS irradiance of each capture (pi L / E)"
                             : "panel capture " + fs::absolute(options.panel_dir).string()},
         {"points", result.points},
-        {"poses", run_sfm ? "colmap" : fs::absolute(options.poses).string()}};
+        {"poses", run_sfm ? "colmap" : fs::absolute(options.poses).string()},
+        {"georeference", georef ? nlohmann::json(io::kGeorefFile) : nlohmann::json()}};
     if (run_sfm) fs::rename(failed_log, tmp / "colmap.log");
     result.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -25,9 +25,9 @@ fs::path RunPaths::checkpoint_at(int64_t iteration) const {
 std::vector<std::string> run_entry_names() {
   // export/: `ddhgs export`'s default output. Nested outputs (eval/,
   // report/, renders/) carry markers of their own and are checked as such.
-  return {"config.json",   "gaussians.ply",      "checkpoint.pt",       "checkpoints",
-          "metrics.jsonl", "train_summary.json", "background.json",     "denoiser.pt",
-          "export",        "pseudo_views.pt",    "rig_corrections.json"};
+  return {"config.json",   "gaussians.ply",      "checkpoint.pt",        "checkpoints",
+          "metrics.jsonl", "train_summary.json", "background.json",      "denoiser.pt",
+          "export",        "pseudo_views.pt",    "rig_corrections.json", "georef.json"};
 }
 
 RunWriter::RunWriter(const RunPaths& run, io::OutputRequest request)

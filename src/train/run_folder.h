@@ -30,6 +30,8 @@ struct RunPaths {
   std::filesystem::path learned_background() const { return root / "background.json"; }
   // The band cameras' corrections a rig run learned (camera_refinement.rig).
   std::filesystem::path rig_corrections() const { return root / "rig_corrections.json"; }
+  // The scene's georeference as the run was trained on it (io/geo/georef.h).
+  std::filesystem::path georef() const { return root / "georef.json"; }
   // The distillation's pseudo-view targets while it runs (removed at the end).
   std::filesystem::path pseudo_views() const { return root / "pseudo_views.pt"; }
 };

@@ -86,6 +86,9 @@ void Trainer::write_outputs(double seconds, const json& test_at_end) {
                                                       values.data_ptr<float>() + values.numel())}};
     io::write_file_atomically(run_.learned_background(), learned.dump(2) + "\n");
   }
+  // The run's own copy of where its frame lies on the earth, for
+  // `render --ortho` and for whoever moves the run without its scene.
+  if (scene_->georef) io::write_georeference(run_.georef(), *scene_->georef);
   io::write_file_atomically(run_.summary(), summary.dump(2) + "\n");
 }
 

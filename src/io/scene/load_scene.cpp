@@ -348,6 +348,7 @@ std::unique_ptr<Scene> load_scene(const fs::path& dir, const LoadOptions& option
   scene->notes = found.notes;
   scene->points = found.points;
   scene->rig = found.rig;
+  scene->georef = find_georeference(root);
 
   // Sorted as nerfstudio sorts frames, so split indices match its own.
   std::vector<LayoutCandidate> kept;

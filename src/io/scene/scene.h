@@ -22,6 +22,7 @@
 
 #include "core/camera.h"
 #include "io/cube/cube.h"
+#include "io/geo/georef.h"
 #include "io/ply/ply.h"
 #include "io/rig/rig_layout.h"
 #include "io/undistort/undistort.h"
@@ -79,6 +80,8 @@ class Scene {
   PointCloud points;                   // xyz undefined when the dataset has none
   // A rig scene's band cameras (transforms.json "rig"); nullopt otherwise.
   std::optional<TransformsRig> rig;
+  // The scene's place in a projected CRS (georef.json); nullopt when it has none.
+  std::optional<Georeference> georef;
   SampleType stored_type = SampleType::F32;
   double scale = 1;                   // divisor applied to stored samples
   std::vector<std::string> warnings;  // problems found while loading
