@@ -19,19 +19,20 @@ for arg in "$@"; do
 done
 
 # colmap: `ddhgs process` runs it (structure from motion on pseudo-RGB views).
+# libgdal-dev: `render --ortho` writes Cloud-Optimised GeoTIFFs through GDAL.
 packages=(build-essential cmake ninja-build pkg-config libtorch-dev libopenblas0-pthread
           nlohmann-json3-dev libcli11-dev libstb-dev libtiff-dev libpng-dev libjpeg-dev
-          libgtest-dev libbenchmark-dev colmap)
+          libgdal-dev libgtest-dev libbenchmark-dev colmap)
 if [ "$with_tests" = 1 ]; then
   # Independent cross-checks in tests: numpy for metrics and .npy files,
   # PyTorch for .pt files written by torch.save; headless Chromium opens the
   # HTML report (tests/app/test_report_cli.cpp).
   # PIL decodes PNG/JPEG/TIFF independently of ours; clang-format checks the
   # tree's formatting; git makes the scratch checkout that tests the commit
-  # `--version` names.
+  # `--version` names; gdal-bin's gdalinfo reads the orthomosaics back.
   # slurm-wlm and munge: tests/slurm/single_node_slurm.sh starts a real
   # single-node Slurm and runs a partition's blocks as a job array.
-  packages+=(python3 python3-numpy python3-torch python3-pil chromium clang-format git
+  packages+=(python3 python3-numpy python3-torch python3-pil chromium clang-format git gdal-bin
              slurm-wlm munge)
 fi
 

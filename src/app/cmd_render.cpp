@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "app/ortho_render.h"
 #include "app/registry.h"
 #include "app/trained_run.h"
 #include "core/band_map.h"
@@ -42,6 +43,8 @@ struct RenderArgs {
   int64_t denoise = 0;
   bool ddpm = false;
   SamplerFlags sampler;
+  bool ortho = false;
+  double gsd_m = 0;
 };
 
 Action setup(CLI::App& parent) {
@@ -102,8 +105,26 @@ Action setup(CLI::App& parent) {
                 "Denoise with full ancestral DDPM sampling instead (every step; slow)")
       ->excludes(denoise);
   add_sampler_flags(cmd, args->sampler);
+  auto* ortho = cmd->add_flag(
+      "--ortho", args->ortho,
+      "An orthomosaic instead of views: the model straight down over the flight's footprint as "
+      "Cloud-Optimised GeoTIFFs in the scene's CRS (needs georef.json: process --rig with GPS); "
+      "reflectance bands, or with --index the index map; --bands MIN:MAX keeps those bands");
+  for (const char* other : {"--orbit", "--split", "--format", "--band", "--colormap", "--diff",
+                            "--diff-max", "--wavelengths", "--response", "--denoise", "--ddpm",
+                            "--start-strength", "--eta", "--samples"})
+    ortho->excludes(other);
+  cmd->add_option("--gsd", args->gsd_m,
+                  "With --ortho: ground sample distance, metres per pixel (default the flight's "
+                  "own: the cameras' median height above the ground over their focal length)")
+      ->check(within(1e-4, 1e4))
+      ->needs(ortho);
   return [args] {
     TrainedRun run = open_trained_run(args->run, args->data);
+    if (args->ortho) {
+      write_orthomosaic(run, {args->gsd_m, args->index, args->band_range, args->out});
+      return 0;
+    }
     const io::Scene& scene = *run.scene;
     eval::RenderOptions options;
     options.format = eval::parse_output_format(args->format);
