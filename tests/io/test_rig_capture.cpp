@@ -155,7 +155,8 @@ TEST(RigCapture, GpsPositionReadsBackAsWritten) {
     EXPECT_NEAR(r.altitude_m, p[2], 1e-6);
   }
   std::string out;
-  ASSERT_EQ(test::run_command("gdalinfo -mdd EXIF " + (dir / "IMG_0000_1.tif").string(), &out), 0) << out;
+  ASSERT_EQ(test::run_command("gdalinfo -mdd EXIF " + (dir / "IMG_0000_1.tif").string(), &out), 0)
+      << out;
   EXPECT_NE(out.find("EXIF_GPSLatitudeRef=N"), std::string::npos) << out;
   EXPECT_NE(out.find("EXIF_GPSLatitude=(52) (7) (24.4444"), std::string::npos) << out;
   EXPECT_NE(out.find("EXIF_GPSLongitude=(5) (59) (15.5556"), std::string::npos) << out;

@@ -1,0 +1,221 @@
+// Georeferenced orthomosaics end to end: `synth --preset rig-nadir` writes
+// rig captures with EXIF GPS and the orthographic truth; `process --rig`
+// (with the true poses) fits the georeference (georef.json, residuals); `info` prints it;
+// training keeps it; `render --ortho` writes Cloud-Optimised GeoTIFFs that
+// GDAL (gdalinfo, gdal_translate) reads back: the CRS, the geotransform,
+// each band's wavelength and the nodata value. The orthomosaic is measured
+// against the truth's orthographic reflectance over the area it covers
+// (PSNR). DDHGS_ORTHO_ITERATIONS lengthens the training for
+// docs/benchmarks.md.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+
+#include "io/cube/cube.h"
+#include "io/files/atomic_file.h"
+#include "support/test_support.h"
+
+namespace ddhgs {
+namespace {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+int ddhgs(const std::string& args, std::string* out) {
+  return test::run_command(test::ddhgs_binary() + " " + args, out);
+}
+
+json read_json(const fs::path& p) {
+  return json::parse(io::read_file(p));
+}
+
+// A GeoTIFF as GDAL reads it: gdalinfo's description and the pixels through
+// gdal_translate to a raw band-sequential float32 file.
+struct Raster {
+  json info;
+  std::vector<double> gt;
+  int64_t width = 0, height = 0, bands = 0;
+  std::vector<float> data;  // [B][H][W]
+  float at(int64_t b, int64_t row, int64_t col) const {
+    return data[size_t((b * height + row) * width + col)];
+  }
+};
+
+Raster read_with_gdal(const fs::path& tif) {
+  Raster r;
+  std::string out;
+  EXPECT_EQ(test::run_command("gdalinfo -json -mdd all " + tif.string(), &out), 0) << out;
+  r.info = json::parse(out.substr(out.find('{')));
+  r.gt = r.info["geoTransform"].get<std::vector<double>>();
+  r.width = r.info["size"][0];
+  r.height = r.info["size"][1];
+  r.bands = int64_t(r.info["bands"].size());
+  const fs::path raw = tif.parent_path() / (tif.stem().string() + ".raw");
+  EXPECT_EQ(test::run_command("gdal_translate -q -of ENVI -co INTERLEAVE=BSQ -ot Float32 " +
+                                  tif.string() + " " + raw.string(),
+                              &out),
+            0)
+      << out;
+  r.data.resize(size_t(r.bands * r.height * r.width));
+  std::ifstream in(raw, std::ios::binary);
+  in.read(reinterpret_cast<char*>(r.data.data()), std::streamsize(r.data.size() * sizeof(float)));
+  EXPECT_TRUE(bool(in)) << raw;
+  return r;
+}
+
+// Bilinear sample of band b at CRS (east, north); NaN where any of the four
+// pixels is nodata or outside.
+double sample(const Raster& r, int64_t b, double east, double north) {
+  const double x = (east - r.gt[0]) / r.gt[1] - 0.5, y = (north - r.gt[3]) / r.gt[5] - 0.5;
+  const int64_t x0 = int64_t(std::floor(x)), y0 = int64_t(std::floor(y));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= r.width || y0 + 1 >= r.height) return NAN;
+  const double fx = x - double(x0), fy = y - double(y0);
+  double v = 0;
+  for (int dy = 0; dy < 2; ++dy)
+    for (int dx = 0; dx < 2; ++dx) {
+      const float p = r.at(b, y0 + dy, x0 + dx);
+      if (p == -9999.0f) return NAN;
+      v += p * (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy);
+    }
+  return v;
+}
+
+TEST(OrthoCli, AGeoreferencedStripRendersAnOrthomosaicThatMatchesTheTruth) {
+  const fs::path root = test::temp_dir("ortho_cli");
+  const fs::path strip = root / "strip", scene = root / "scene", run = root / "run";
+  std::string out;
+  ASSERT_EQ(ddhgs("synth --preset rig-nadir --out " + strip.string(), &out), 0) << out;
+  // The reference camera's true poses (COLMAP does not pose this small
+  // strip): the fit then finds the truth's world, placed by the GPS alone.
+  ASSERT_EQ(ddhgs("process " + (strip / "captures").string() + " --rig --skip-colmap --poses " +
+                      (strip / "truth" / "transforms.json").string() + " --out " + scene.string(),
+                  &out),
+            0)
+      << out;
+  // The georeference from the GPS: exact GPS and poses, so no residual.
+  const json georef = read_json(scene / "georef.json");
+  const json synth = read_json(strip / "synth.json");
+  EXPECT_EQ(georef["epsg"], synth["georeference"]["epsg"]);
+  EXPECT_EQ(georef["fit"]["captures"], 8);
+  EXPECT_LT(georef["fit"]["gps_rms_m"].get<double>(), 1e-3);
+  // The world's origin lands at the truth's projected coordinates.
+  for (size_t i = 0; i < 3; ++i)
+    EXPECT_NEAR(georef["scene_to_crs"]["translation"][i].get<double>(),
+                synth["georeference"]["world_origin_crs_m"][i].get<double>(), 1e-3);
+  EXPECT_NE(georef["fit"]["orientation_from"].get<std::string>().find("nadir"),
+            std::string::npos);  // one straight strip
+  EXPECT_EQ(read_json(scene / "process.json")["georeference"], "georef.json");
+  EXPECT_NE(out.find("georeferenced to EPSG:32630"), std::string::npos) << out;
+  ASSERT_EQ(ddhgs("info " + scene.string(), &out), 0) << out;
+  EXPECT_NE(out.find("georef      EPSG:32630"), std::string::npos) << out;
+
+  const char* env = std::getenv("DDHGS_ORTHO_ITERATIONS");
+  const std::string iterations = env && *env ? env : "800";
+  ASSERT_EQ(ddhgs("train " + scene.string() + " --out " + run.string() +
+                      " --preset demo --iterations " + iterations + " --set output.test_every=0",
+                  &out),
+            0)
+      << out;
+  EXPECT_EQ(read_json(run / "georef.json"), georef);
+
+  // The orthomosaic on the truth's grid spacing.
+  const std::vector<double> truth_gt = synth["ortho"]["geotransform"].get<std::vector<double>>();
+  char gsd[32];
+  std::snprintf(gsd, sizeof gsd, "%.9g", truth_gt[1]);
+  ASSERT_EQ(ddhgs("render " + run.string() + " --ortho --gsd " + gsd, &out), 0) << out;
+  const fs::path ortho = run / "renders" / "ortho";
+  const Raster r = read_with_gdal(ortho / "reflectance.tif");
+  const std::string wkt = r.info["coordinateSystem"]["wkt"];
+  EXPECT_NE(wkt.find("ID[\"EPSG\",32630]"), std::string::npos) << wkt;
+  EXPECT_NEAR(r.gt[1], truth_gt[1], 1e-9);
+  EXPECT_NEAR(r.gt[5], -truth_gt[1], 1e-9);
+  EXPECT_EQ(r.info["metadata"]["IMAGE_STRUCTURE"]["LAYOUT"], "COG");
+  const std::vector<std::string> names = {"475 nm", "560 nm", "668 nm", "717 nm", "842 nm"};
+  ASSERT_EQ(r.bands, 5);
+  for (size_t b = 0; b < 5; ++b) {
+    EXPECT_EQ(r.info["bands"][b]["description"], names[b]);
+    EXPECT_EQ(r.info["bands"][b]["noDataValue"], -9999);
+  }
+  // The footprint covers the truth's (the cameras see at least that).
+  EXPECT_LE(r.gt[0], truth_gt[0] + truth_gt[1]);
+  EXPECT_GE(r.gt[3], truth_gt[3] - truth_gt[1]);
+
+  // PSNR against the truth's orthographic reflectance over the covered area
+  // (peak 1), the mosaic sampled at the truth's pixel centres.
+  const io::Cube truth = io::read_cube(strip / "truth" / "ortho.npy");
+  const int64_t th = truth.data.size(0), tw = truth.data.size(1);
+  const torch::Tensor t = truth.data.contiguous();
+  const float* tv = t.data_ptr<float>();
+  double sq = 0;
+  int64_t n = 0, pixels = 0;
+  for (int64_t row = 0; row < th; ++row)
+    for (int64_t col = 0; col < tw; ++col) {
+      const double e = truth_gt[0] + (col + 0.5) * truth_gt[1];
+      const double nn = truth_gt[3] + (row + 0.5) * truth_gt[5];
+      bool covered = true;
+      for (int64_t b = 0; b < 5 && covered; ++b) {
+        const double v = sample(r, b, e, nn);
+        if (std::isnan(v)) {
+          covered = false;
+          break;
+        }
+        const double d = v - tv[(row * tw + col) * 5 + b];
+        sq += d * d;
+        ++n;
+      }
+      pixels += covered;
+    }
+  ASSERT_GT(n, 0);
+  const double psnr = 10 * std::log10(double(n) / sq);
+  const double covered = double(pixels) / double(th * tw);
+  std::printf(
+      "orthomosaic vs truth: PSNR %.2f dB over %.1f %% of the truth's footprint (%s "
+      "iterations)\n",
+      psnr, 100 * covered, iterations.c_str());
+  // The ground disc and the plant: the backdrop around them is the learned
+  // background, which no Gaussian covers.
+  EXPECT_GT(covered, 0.2);
+  // 28.3 dB measured at 800 iterations, 27.7 at 3000 (docs/benchmarks.md;
+  // the bar of 30 dB is not met yet).
+  EXPECT_GE(psnr, 26.0);
+
+  // An index map, and GDAL's view of it.
+  ASSERT_EQ(ddhgs("render " + run.string() + " --ortho --index ndvi", &out), 0) << out;
+  const Raster ndvi = read_with_gdal(ortho / "ndvi.tif");
+  EXPECT_EQ(ndvi.bands, 1);
+  EXPECT_NE(ndvi.info["bands"][0]["description"].get<std::string>().find("ndvi"),
+            std::string::npos);
+  EXPECT_TRUE(fs::exists(ortho / "ndvi.png"));
+  EXPECT_TRUE(fs::exists(ortho / "reflectance.png"));
+  EXPECT_TRUE(fs::exists(ortho / "reflectance.tif"));  // the earlier product stays
+}
+
+// A scene without GPS: no georef.json, and --ortho is one error naming the
+// run, with nothing written.
+TEST(OrthoCli, WithoutGpsThereIsNoGeoreferenceAndNoOrthomosaic) {
+  const fs::path root = test::temp_dir("ortho_none");
+  std::string out;
+  ASSERT_EQ(ddhgs("synth --preset demo --views 6 --width 32 --height 24 --bands 8 --out " +
+                      (root / "demo").string(),
+                  &out),
+            0)
+      << out;
+  ASSERT_EQ(ddhgs("train " + (root / "demo").string() + " --out " + (root / "run").string() +
+                      " --preset demo --iterations 20 --set output.test_every=0",
+                  &out),
+            0)
+      << out;
+  EXPECT_FALSE(fs::exists(root / "run" / "georef.json"));
+  EXPECT_NE(ddhgs("render " + (root / "run").string() + " --ortho", &out), 0);
+  EXPECT_NE(out.find("--ortho needs a georeferenced scene"), std::string::npos) << out;
+  EXPECT_NE(out.find((root / "run").string()), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(root / "run" / "renders"));
+  EXPECT_NE(ddhgs("render " + (root / "run").string() + " --gsd 0.1", &out), 0);  // needs --ortho
+  EXPECT_NE(ddhgs("render " + (root / "run").string() + " --ortho --orbit 4", &out), 0);
+}
+
+}  // namespace
+}  // namespace ddhgs
