@@ -22,17 +22,17 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kNodata = -9999;
-constexpr double kCoveredAlpha = 0.5;  // a pixel at least half covered holds a value
+constexpr double kOrthoNodata = -9999;
+constexpr double kOrthoCoveredAlpha = 0.5;  // a pixel at least half covered holds a value
 
-// values [H, W, B] where covered, kNodata elsewhere.
+// values [H, W, B] where covered, kOrthoNodata elsewhere.
 torch::Tensor with_nodata(const torch::Tensor& values, const torch::Tensor& covered) {
-  return torch::where(covered.unsqueeze(2), values, torch::full({}, float(kNodata)));
+  return torch::where(covered.unsqueeze(2), values, torch::full({}, float(kOrthoNodata)));
 }
 
 // A preview: picture [H, W, 3] in [0, 1] with uncovered pixels mid grey.
-void write_preview(const fs::path& path, const torch::Tensor& picture,
-                   const torch::Tensor& covered) {
+void write_ortho_preview(const fs::path& path, const torch::Tensor& picture,
+                         const torch::Tensor& covered) {
   const torch::Tensor shown =
       torch::where(covered.unsqueeze(2), picture, torch::full({}, 0.5f)).clamp(0, 1);
   io::write_png(path, core::to_u8(shown));
@@ -70,18 +70,18 @@ int write_orthomosaic(const TrainedRun& run, const OrthoRequest& request) {
                  " m; tiles seen from far above: parallax under " +
                  core::format_g(eval::kOrthoParallaxPx) + " px");
   const eval::Orthomosaic mosaic = eval::render_orthomosaic(run.gaussians, georef, grid, ground);
-  const torch::Tensor covered = mosaic.alpha >= float(kCoveredAlpha);
+  const torch::Tensor covered = mosaic.alpha >= float(kOrthoCoveredAlpha);
   // What covers each pixel: the premultiplied render over no background,
   // divided by its coverage.
   const torch::Tensor reflectance =
-      mosaic.image / mosaic.alpha.clamp_min(float(kCoveredAlpha)).unsqueeze(2);
+      mosaic.image / mosaic.alpha.clamp_min(float(kOrthoCoveredAlpha)).unsqueeze(2);
   const double covered_fraction = covered.to(torch::kFloat64).mean().item<double>();
 
   io::GeoRaster raster;
   raster.epsg = georef.epsg;
   const std::vector<double> gt = grid.geotransform();
   for (int i = 0; i < 6; ++i) raster.geotransform[size_t(i)] = gt[size_t(i)];
-  raster.nodata = kNodata;
+  raster.nodata = kOrthoNodata;
   std::string name;
   int files = 0;
   io::FolderLock lock(run.root, "render");
@@ -96,7 +96,7 @@ int write_orthomosaic(const TrainedRun& run, const OrthoRequest& request) {
       raster.descriptions = {index->name + " (" + index->a.name + " - " + index->b.name + ") / (" +
                              index->a.name + " + " + index->b.name + ")"};
       io::write_cog(tmp / (name + ".tif"), raster);
-      write_preview(tmp / (name + ".png"), eval::index_picture(values.nan_to_num(0)), valid);
+      write_ortho_preview(tmp / (name + ".png"), eval::index_picture(values.nan_to_num(0)), valid);
     } else {
       name = bands.pseudo_rgb ? "reflectance" : "reflectance_" + bands.label;
       const int64_t first = bands.pseudo_rgb ? 0 : bands.first;
@@ -109,7 +109,7 @@ int write_orthomosaic(const TrainedRun& run, const OrthoRequest& request) {
       io::write_cog(tmp / (name + ".tif"), raster);
       const torch::Tensor picture = eval::picture(reflectance.clamp(0, 1), scene.wavelengths_nm,
                                                   bands, eval::Colormap::Viridis);
-      write_preview(tmp / (name + ".png"), picture, covered);
+      write_ortho_preview(tmp / (name + ".png"), picture, covered);
     }
     const nlohmann::json record = {{"epsg", georef.epsg},
                                    {"geotransform", gt},
@@ -120,8 +120,8 @@ int write_orthomosaic(const TrainedRun& run, const OrthoRequest& request) {
                                    {"relief_m", ground.relief_m},
                                    {"parallax_bound_px", eval::kOrthoParallaxPx},
                                    {"covered_fraction", covered_fraction},
-                                   {"nodata", kNodata},
-                                   {"covered_alpha", kCoveredAlpha}};
+                                   {"nodata", kOrthoNodata},
+                                   {"covered_alpha", kOrthoCoveredAlpha}};
     io::write_file_atomically(tmp / (name + ".json"), record.dump(2) + "\n");
     files = 3;
   });

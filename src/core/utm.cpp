@@ -9,23 +9,24 @@
 namespace ddhgs::core {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180;
-constexpr double kA = 6378137.0;               // WGS84 semi-major axis, m
-constexpr double kF = 1 / 298.257223563;       // WGS84 flattening
-constexpr double kK0 = 0.9996;                 // UTM central scale factor
+constexpr double kUtmPi = 3.14159265358979323846;
+constexpr double kUtmDeg = kUtmPi / 180;
+constexpr double kWgs84A = 6378137.0;          // WGS84 semi-major axis, m
+constexpr double kWgs84F = 1 / 298.257223563;  // WGS84 flattening
+constexpr double kUtmK0 = 0.9996;              // UTM central scale factor
 constexpr double kFalseEasting = 500000.0;     // m
 constexpr double kFalseNorthing = 10000000.0;  // m, southern zones
 
 // The series' constants, computed once from the ellipsoid.
-struct Series {
+struct KruegerSeries {
   double e = 0;       // eccentricity
   double radius = 0;  // rectifying radius A, m
   std::array<double, 6> alpha{}, beta{};
-  Series() {
-    const double n = kF / (2 - kF), n2 = n * n, n3 = n2 * n, n4 = n3 * n, n5 = n4 * n, n6 = n5 * n;
-    e = std::sqrt(kF * (2 - kF));
-    radius = kA / (1 + n) * (1 + n2 / 4 + n4 / 64 + n6 / 256);
+  KruegerSeries() {
+    const double n = kWgs84F / (2 - kWgs84F), n2 = n * n, n3 = n2 * n, n4 = n3 * n, n5 = n4 * n,
+                 n6 = n5 * n;
+    e = std::sqrt(kWgs84F * (2 - kWgs84F));
+    radius = kWgs84A / (1 + n) * (1 + n2 / 4 + n4 / 64 + n6 / 256);
     alpha = {n / 2 - 2 * n2 / 3 + 5 * n3 / 16 + 41 * n4 / 180 - 127 * n5 / 288 + 7891 * n6 / 37800,
              13 * n2 / 48 - 3 * n3 / 5 + 557 * n4 / 1440 + 281 * n5 / 630 - 1983433 * n6 / 1935360,
              61 * n3 / 240 - 103 * n4 / 140 + 15061 * n5 / 26880 + 167603 * n6 / 181440,
@@ -41,8 +42,8 @@ struct Series {
   }
 };
 
-const Series& series() {
-  static const Series s;
+const KruegerSeries& krueger_series() {
+  static const KruegerSeries s;
   return s;
 }
 
@@ -82,9 +83,9 @@ UtmZone utm_zone(double latitude_deg, double longitude_deg) {
 
 UtmPoint to_utm(double latitude_deg, double longitude_deg, const UtmZone& zone) {
   check_zone(zone);
-  const Series& s = series();
-  const double phi = latitude_deg * kDeg;
-  const double lambda = (longitude_deg - central_meridian_deg(zone)) * kDeg;
+  const KruegerSeries& s = krueger_series();
+  const double phi = latitude_deg * kUtmDeg;
+  const double lambda = (longitude_deg - central_meridian_deg(zone)) * kUtmDeg;
   // The conformal latitude's tangent.
   const double sin_phi = std::sin(phi);
   const double t = std::sinh(std::atanh(sin_phi) - s.e * std::atanh(s.e * sin_phi));
@@ -95,15 +96,15 @@ UtmPoint to_utm(double latitude_deg, double longitude_deg, const UtmZone& zone) 
     xi += s.alpha[size_t(j - 1)] * std::sin(2 * j * xi_p) * std::cosh(2 * j * eta_p);
     eta += s.alpha[size_t(j - 1)] * std::cos(2 * j * xi_p) * std::sinh(2 * j * eta_p);
   }
-  return {kFalseEasting + kK0 * s.radius * eta,
-          (zone.north ? 0.0 : kFalseNorthing) + kK0 * s.radius * xi};
+  return {kFalseEasting + kUtmK0 * s.radius * eta,
+          (zone.north ? 0.0 : kFalseNorthing) + kUtmK0 * s.radius * xi};
 }
 
 LatLon from_utm(const UtmPoint& point, const UtmZone& zone) {
   check_zone(zone);
-  const Series& s = series();
-  const double xi = (point.northing_m - (zone.north ? 0.0 : kFalseNorthing)) / (kK0 * s.radius);
-  const double eta = (point.easting_m - kFalseEasting) / (kK0 * s.radius);
+  const KruegerSeries& s = krueger_series();
+  const double xi = (point.northing_m - (zone.north ? 0.0 : kFalseNorthing)) / (kUtmK0 * s.radius);
+  const double eta = (point.easting_m - kFalseEasting) / (kUtmK0 * s.radius);
   double xi_p = xi, eta_p = eta;
   for (int j = 1; j <= 6; ++j) {
     xi_p -= s.beta[size_t(j - 1)] * std::sin(2 * j * xi) * std::cosh(2 * j * eta);
@@ -125,7 +126,7 @@ LatLon from_utm(const UtmPoint& point, const UtmZone& zone) {
     tau += step;
     if (std::abs(step) < 1e-15) break;
   }
-  return {std::atan(tau) / kDeg, central_meridian_deg(zone) + lambda / kDeg};
+  return {std::atan(tau) / kUtmDeg, central_meridian_deg(zone) + lambda / kUtmDeg};
 }
 
 }  // namespace ddhgs::core

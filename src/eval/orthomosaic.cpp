@@ -12,7 +12,7 @@ namespace ddhgs::eval {
 
 namespace {
 
-constexpr int64_t kMaxSide = 40000;  // pixels: 1.6 G pixels a band
+constexpr int64_t kOrthoMaxSide = 40000;  // pixels: 1.6 G pixels a band
 
 // The CRS height of every Gaussian centre, float64 [G].
 torch::Tensor crs_heights(const model::Gaussians& gaussians, const io::Georeference& georef) {
@@ -73,10 +73,10 @@ OrthoGrid flight_grid(const io::Scene& scene, const io::Georeference& georef, co
   grid.top_m = std::ceil(top / grid.gsd_m) * grid.gsd_m;
   const double width = std::ceil((right - grid.left_m) / grid.gsd_m);
   const double height = std::ceil((grid.top_m - bottom) / grid.gsd_m);
-  core::require(width <= double(kMaxSide) && height <= double(kMaxSide),
+  core::require(width <= double(kOrthoMaxSide) && height <= double(kOrthoMaxSide),
                 "--gsd " + core::format_g(grid.gsd_m) + " m makes a " + core::format_g(width) +
                     " x " + core::format_g(height) + " pixel orthomosaic; at most " +
-                    std::to_string(kMaxSide) + " a side: give a larger --gsd");
+                    std::to_string(kOrthoMaxSide) + " a side: give a larger --gsd");
   grid.width = std::max<int64_t>(1, int64_t(width));
   grid.height = std::max<int64_t>(1, int64_t(height));
   return grid;

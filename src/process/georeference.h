@@ -5,8 +5,8 @@
 // The captures of a single straight strip lie on one line, about which GPS
 // cannot fix the turn: then the rig's mean viewing axis (the frame its
 // RigRelatives are given in) is taken as straight down (a nadir survey's),
-// added to the fit as a second point per capture one spread below it. Captures spread over a plane (flight lines,
-// a ring) fix the turn themselves and the fit uses their centres alone.
+// added to the fit as a second point per capture one spread below it. Captures spread over a plane
+// (flight lines, a ring) fix the turn themselves and the fit uses their centres alone.
 #pragma once
 #include <string>
 #include <vector>

@@ -16,14 +16,14 @@ using json = nlohmann::json;
 
 namespace {
 
-double number(const json& value, const fs::path& path, const std::string& key) {
+double georef_number(const json& value, const fs::path& path, const std::string& key) {
   if (!value.is_number() || !std::isfinite(value.get<double>()))
     throw core::Error(path, key + ": expected a finite number");
   return value.get<double>();
 }
 
-const json& field(const json& object, const char* key, const fs::path& path,
-                  const std::string& where) {
+const json& georef_field(const json& object, const char* key, const fs::path& path,
+                         const std::string& where) {
   if (!object.is_object() || !object.contains(key))
     throw core::Error(path, "expected " + where + key);
   return object[key];
@@ -68,18 +68,18 @@ Georeference read_georeference(const fs::path& path) {
     throw core::Error(path, "not valid JSON: " + core::message_of(e));
   }
   Georeference g;
-  const json& epsg = field(root, "epsg", path, "");
+  const json& epsg = georef_field(root, "epsg", path, "");
   if (!epsg.is_number_integer() || epsg.get<int64_t>() <= 0 || epsg.get<int64_t>() > 1000000)
     throw core::Error(path, "epsg: expected a positive integer EPSG code, got " +
                                 core::quoted_value(epsg.dump()));
   g.epsg = epsg.get<int>();
-  const json& s = field(root, "scene_to_crs", path, "");
+  const json& s = georef_field(root, "scene_to_crs", path, "");
   g.scene_to_crs.scale =
-      number(field(s, "scale", path, "scene_to_crs."), path, "scene_to_crs.scale");
+      georef_number(georef_field(s, "scale", path, "scene_to_crs."), path, "scene_to_crs.scale");
   if (!(g.scene_to_crs.scale > 0))
     throw core::Error(path, "scene_to_crs.scale: expected a positive number");
-  const json& r = field(s, "rotation", path, "scene_to_crs.");
-  const json& t = field(s, "translation", path, "scene_to_crs.");
+  const json& r = georef_field(s, "rotation", path, "scene_to_crs.");
+  const json& t = georef_field(s, "translation", path, "scene_to_crs.");
   if (!r.is_array() || r.size() != 3 || !t.is_array() || t.size() != 3)
     throw core::Error(path, "scene_to_crs: expected a 3x3 rotation and a translation of 3");
   for (int i = 0; i < 3; ++i) {
@@ -87,11 +87,11 @@ Georeference read_georeference(const fs::path& path) {
       throw core::Error(path, "scene_to_crs.rotation: expected 3 rows of 3 numbers");
     for (int k = 0; k < 3; ++k)
       g.scene_to_crs.rotation(i, k) =
-          number(r[size_t(i)][size_t(k)], path, "scene_to_crs.rotation");
+          georef_number(r[size_t(i)][size_t(k)], path, "scene_to_crs.rotation");
   }
-  g.scene_to_crs.translation = {number(t[0], path, "scene_to_crs.translation"),
-                                number(t[1], path, "scene_to_crs.translation"),
-                                number(t[2], path, "scene_to_crs.translation")};
+  g.scene_to_crs.translation = {georef_number(t[0], path, "scene_to_crs.translation"),
+                                georef_number(t[1], path, "scene_to_crs.translation"),
+                                georef_number(t[2], path, "scene_to_crs.translation")};
   // A rotation: orthonormal rows, determinant +1 (to the digits JSON keeps).
   const core::Mat3 rr = g.scene_to_crs.rotation * g.scene_to_crs.rotation.transposed();
   double off = std::abs(g.scene_to_crs.rotation.determinant() - 1);

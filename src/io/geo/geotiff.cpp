@@ -20,7 +20,7 @@ namespace {
 struct DatasetCloser {
   void operator()(GDALDataset* d) const { GDALClose(d); }
 };
-using Dataset = std::unique_ptr<GDALDataset, DatasetCloser>;
+using GdalDataset = std::unique_ptr<GDALDataset, DatasetCloser>;
 
 // GDAL's last error as the end of a sentence.
 std::string gdal_error() {
@@ -30,12 +30,12 @@ std::string gdal_error() {
 
 // The raster in memory, every band and its description, nodata and
 // wavelength set, ready for the COG driver to copy.
-Dataset memory_dataset(const GeoRaster& r, const fs::path& path) {
+GdalDataset memory_dataset(const GeoRaster& r, const fs::path& path) {
   const int height = int(r.bands.size(0)), width = int(r.bands.size(1)),
             count = int(r.bands.size(2));
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
   core::require(mem != nullptr, path, "GDAL has no MEM driver");
-  Dataset d(mem->Create("", width, height, count, GDT_Float32, nullptr));
+  GdalDataset d(mem->Create("", width, height, count, GDT_Float32, nullptr));
   core::require(d != nullptr, path, "GDAL cannot hold the raster in memory" + gdal_error());
   OGRSpatialReference srs;
   core::require(srs.importFromEPSG(r.epsg) == OGRERR_NONE, path,
@@ -78,7 +78,7 @@ void write_cog(const fs::path& path, const GeoRaster& r) {
   static std::once_flag registered;
   std::call_once(registered, [] { GDALAllRegister(); });
   CPLErrorReset();
-  const Dataset source = memory_dataset(r, path);
+  const GdalDataset source = memory_dataset(r, path);
   GDALDriver* cog = GetGDALDriverManager()->GetDriverByName("COG");
   core::require(cog != nullptr, path, "this GDAL has no COG driver (GDAL 3.1 or newer)");
   write_atomically(path, [&](const fs::path& tmp) {
@@ -88,7 +88,7 @@ void write_cog(const fs::path& path, const GeoRaster& r) {
     options.SetNameValue("BLOCKSIZE", "512");
     options.SetNameValue("OVERVIEWS", "AUTO");
     options.SetNameValue("NUM_THREADS", "1");
-    Dataset out(
+    GdalDataset out(
         cog->CreateCopy(tmp.c_str(), source.get(), FALSE, options.List(), nullptr, nullptr));
     if (!out) throw core::Error(path, "GDAL could not write the GeoTIFF" + gdal_error());
     out->FlushCache();
