@@ -17,6 +17,7 @@
 
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
+#include "reliability/cli_support.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -24,9 +25,7 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-int ddhgs(const std::string& args, std::string* out) {
-  return test::run_command(test::ddhgs_binary() + " " + args, out);
-}
+using test::ddhgs;
 
 json read_json(const fs::path& p) {
   return json::parse(io::read_file(p));
