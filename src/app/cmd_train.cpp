@@ -1,5 +1,6 @@
 // `ddhgs train DATA --out RUN`: trains N-band Gaussians on a dataset folder.
 // A preset (configs/) gives every hyperparameter; each flag overrides one key.
+#include <algorithm>
 #include <csignal>
 #include <filesystem>
 #include <memory>
@@ -73,6 +74,13 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
                         "is " + a.band_range + ", expected MIN:MAX with 0 <= MIN <= MAX (nm)");
   }
   for (const auto& assignment : a.assignments) train::apply_assignment(config, assignment);
+  // A length the user gives is the length: a band-per-view scene's shorter
+  // default (optim.iterations_per_band_view) steps aside.
+  const bool iterations_given =
+      given("--iterations") ||
+      std::any_of(a.assignments.begin(), a.assignments.end(),
+                  [](const std::string& s) { return s.rfind("iterations=", 0) == 0; });
+  if (iterations_given) config["optim"]["iterations_per_band_view"] = 0;
 }
 
 // The shell's convention for a process stopped by a signal: 128 + signal

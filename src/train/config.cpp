@@ -190,6 +190,7 @@ constexpr AddedKey kAddedKeys[] = {
     {"model.exposure_correction", "\"off\""},
     {"optim.exposure_lr", "0.01"},    // correction off
     {"loss.exposure_prior", "0.01"},  // correction off
+    {"optim.iterations_per_band_view", "0"},
 };
 
 // The one section added whole since format_version 2 began.

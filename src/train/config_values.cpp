@@ -68,6 +68,7 @@ constexpr Range kRanges[] = {
     {"optim.lr_decay_from_fraction", 0, 1, false},
     {"optim.lr_final_scale", 0, 1, true},
     {"optim.exposure_lr", 0, kMaxRate, false},
+    {"optim.iterations_per_band_view", 0, kMaxCount, false, true},
     {"loss.l1", 0, kMaxWeight, false},
     {"loss.dssim", 0, kMaxWeight, false},
     {"loss.spectral", 0, kMaxWeight, false},

@@ -91,6 +91,7 @@ OptimConfig parse_optim(const json& o, const std::string& source) {
   c.lr_decay_from_fraction = read<double>(o, "optim", "lr_decay_from_fraction", source);
   c.lr_final_scale = read<double>(o, "optim", "lr_final_scale", source);
   c.exposure_lr = read<double>(o, "optim", "exposure_lr", source);
+  c.iterations_per_band_view = read<int64_t>(o, "optim", "iterations_per_band_view", source);
   return c;
 }
 

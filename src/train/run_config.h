@@ -69,6 +69,10 @@ struct OptimConfig {
   double lr_decay_from_fraction = 0.9;
   double lr_final_scale = 1;
   double exposure_lr = 0;  // the views' log gains (falls with the rates above)
+  // A band-per-view scene (one band image per view, a rig's flight) trains
+  // for at most this many iterations per training view, when that is fewer
+  // than `iterations` (train/schedule.h); 0: `iterations` as given.
+  int64_t iterations_per_band_view = 0;
 };
 
 struct LossConfig {

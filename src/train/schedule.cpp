@@ -1,5 +1,6 @@
 #include "train/schedule.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -19,6 +20,12 @@ int64_t interval(double fraction, int64_t iterations) {
 }
 
 }  // namespace
+
+int64_t run_iterations(const RunConfig& config, bool band_per_view, int64_t training_views) {
+  const int64_t per_view = config.optim.iterations_per_band_view;
+  if (!band_per_view || per_view <= 0 || training_views <= 0) return config.iterations;
+  return std::min(config.iterations, per_view * training_views);
+}
 
 Schedule schedule_of(const RunConfig& config) {
   Schedule s;

@@ -33,6 +33,15 @@ struct Schedule {
 
 struct RunConfig;
 
+// How many Gaussian iterations a run of `config` trains: `iterations`, or,
+// on a band-per-view scene (a rig's flight: one band image per view), at most
+// optim.iterations_per_band_view per training view (0: no such limit). Such a
+// flight supervises one band image per iteration, and its held-out views stop
+// improving after about a hundred passes over them (docs/benchmarks.md, "A
+// 1280x960 strip with the defaults"), long before 30,000 iterations at
+// 1280x960 do (hours on two cores).
+int64_t run_iterations(const RunConfig& config, bool band_per_view, int64_t training_views);
+
 // The schedule of a run's config: round(fraction x iterations), and at
 // least 1 for the intervals whose fraction is above zero.
 Schedule schedule_of(const RunConfig& config);

@@ -1,6 +1,7 @@
 // What a run leaves in its folder (train/run_folder.h): checkpoints, and at
 // the end the PLY, train_summary.json, the denoiser and the learned
 // background.
+#include <cmath>
 #include <vector>
 
 #include "core/log.h"
@@ -57,6 +58,9 @@ void Trainer::write_outputs(double seconds, const json& test_at_end) {
       {"thread_source", core::thread_source()},
       {"densify_added", state_.counters.densify_added},
       {"densify_removed", state_.counters.densify_removed}};
+  core::log_info("peak memory " +
+                 std::to_string(std::llround(summary["peak_rss_mib"].get<double>())) +
+                 " MiB resident (train_summary.json: peak_rss_mib)");
   if (offsets.defined()) {
     // How far the encoder moved the SH coefficients, to judge its effect.
     summary["wavelength_offsets_abs_max"] = offsets.abs().max().item<double>();

@@ -45,6 +45,20 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   RunWriter::check(run, replace, inputs);  // before the work of loading
   std::unique_ptr<Trainer> t(new Trainer(std::move(parsed), run));
   t->load_scene();  // before touching the output, so bad input leaves it intact
+  json written = config;
+  const int64_t length =
+      run_iterations(t->config_, t->scene_->band_per_view(), int64_t(t->scene_->train.size()));
+  if (length != t->config_.iterations) {
+    core::log_info("training for " + std::to_string(length) + " iterations (" +
+                   std::to_string(t->config_.optim.iterations_per_band_view) + " per view of " +
+                   std::to_string(t->scene_->train.size()) +
+                   " training band images: optim.iterations_per_band_view on a band-per-view "
+                   "scene; --iterations N sets the length)");
+    t->config_.iterations = length;
+    t->config_.resolved["iterations"] = length;
+    written["iterations"] = length;
+    t->schedule_ = schedule_of(t->config_);
+  }
   t->build_modules();
   t->initialise();
   // Every file the run will read, resolved before anything is moved: a cube
@@ -54,7 +68,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
     read.push_back(v.data_path);
     if (!v.clean_path.empty()) read.push_back(v.clean_path);
   }
-  t->writer_ = RunWriter::create(run, config, replace, read);
+  t->writer_ = RunWriter::create(run, written, replace, read);
   core::log_info("training " + std::to_string(t->state_.gaussians.size()) + " Gaussians x " +
                  std::to_string(t->scene_->bands()) + " bands on " +
                  std::to_string(t->scene_->train.size()) + " views (" +

@@ -144,5 +144,56 @@ TEST(BandPerViewCli, TrainsEvaluatesAndReportsLikeRegisteredCubes) {
   EXPECT_FALSE(fs::exists(root / "diffusion"));
 }
 
+// The default preset's 30,000 iterations would be hours on a real-size
+// flight: a band-per-view scene trains for optim.iterations_per_band_view per
+// training band image, written into the run's config so that a resume keeps
+// it, unless the user gives the length.
+TEST(BandPerViewCli, TrainsPerBandImageUnlessTheLengthIsGiven) {
+  const fs::path root = test::temp_dir("band_per_view_length");
+  std::string out;
+  ASSERT_EQ(ddhgs("synth --preset demo --width 32 --height 24 --bands " + std::to_string(kBands) +
+                      " --views 6 --points 300 --out " + (root / "cubes").string(),
+                  &out),
+            0)
+      << out;
+  split_into_band_views(root / "cubes", root / "bands");
+  const auto scene = io::load_scene(root / "bands");
+  const int64_t training = int64_t(scene->train.size());
+  ASSERT_GT(training, 10);
+  const std::string common =
+      " --set output.test_every=0 --set optim.iterations_per_band_view=2 --out ";
+  ASSERT_EQ(ddhgs("train " + (root / "bands").string() + common + (root / "auto").string(), &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("training for " + std::to_string(2 * training) + " iterations"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(read_json(root / "auto" / "train_summary.json")["iterations"], 2 * training);
+  EXPECT_EQ(read_json(root / "auto" / "config.json")["iterations"], 2 * training);
+  // --iterations, even above the per-image length, is the length; so is --set.
+  ASSERT_EQ(ddhgs("train " + (root / "bands").string() + " --iterations " +
+                      std::to_string(3 * training) + common + (root / "given").string(),
+                  &out),
+            0)
+      << out;
+  EXPECT_EQ(read_json(root / "given" / "train_summary.json")["iterations"], 3 * training);
+  ASSERT_EQ(ddhgs("train " + (root / "bands").string() + " --set iterations=" +
+                      std::to_string(3 * training) + common + (root / "set").string(),
+                  &out),
+            0)
+      << out;
+  EXPECT_EQ(read_json(root / "set" / "config.json")["iterations"], 3 * training);
+  // The registered cubes hold every band per view: a preset's length stands
+  // (50 iterations, more than 2 per cube view).
+  io::write_file_atomically(root / "short.json",
+                            R"({"format_version": 2, "extends": "demo", "iterations": 50})");
+  ASSERT_EQ(ddhgs("train " + (root / "cubes").string() + " --preset " +
+                      (root / "short.json").string() + common + (root / "cube_run").string(),
+                  &out),
+            0)
+      << out;
+  EXPECT_EQ(read_json(root / "cube_run" / "train_summary.json")["iterations"], 50);
+}
+
 }  // namespace
 }  // namespace ddhgs

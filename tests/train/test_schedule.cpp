@@ -14,6 +14,25 @@
 using namespace ddhgs;
 using nlohmann::json;
 
+TEST(Schedule, BandPerViewFlightsTrainPerTrainingViewNeverLonger) {
+  const json c = train::load_preset("default");
+  train::RunConfig config = train::parse_run_config(c, "test");
+  ASSERT_EQ(config.iterations, 30000);
+  ASSERT_EQ(config.optim.iterations_per_band_view, 100);
+  // A scene whose views hold every band keeps the preset's length.
+  EXPECT_EQ(train::run_iterations(config, false, 35), 30000);
+  // An 8-capture x 5-band strip less its held-out capture: 35 band images.
+  EXPECT_EQ(train::run_iterations(config, true, 35), 3500);
+  // Never longer than `iterations`: 400 band images would ask for 40,000.
+  EXPECT_EQ(train::run_iterations(config, true, 400), 30000);
+  config.iterations = 2000;
+  EXPECT_EQ(train::run_iterations(config, true, 35), 2000);
+  // 0 switches the limit off.
+  config.optim.iterations_per_band_view = 0;
+  config.iterations = 30000;
+  EXPECT_EQ(train::run_iterations(config, true, 35), 30000);
+}
+
 TEST(Schedule, FractionsBecomeIterationNumbersOfTheRun) {
   json c = train::load_preset("demo");
   ASSERT_EQ(c["iterations"], 3000);
