@@ -30,20 +30,38 @@ namespace {
 
 constexpr double kShC0 = 0.28209479177387814;  // Y_0^0
 
-// The Gaussians of a block's model whose centres lie in its cell.
-io::GaussianPly in_cell(const io::GaussianPly& ply, const io::BlockGrid& grid, int block) {
+// The Gaussians of a block's model with a weight above 0 at their centres
+// (io::BlockGrid::blend_weight), each opacity times its weight; `faded`
+// counts those whose weight is under 1.
+io::GaussianPly in_reach(const io::GaussianPly& ply, const io::BlockGrid& grid, int block,
+                         double blend, int64_t& faded) {
   const torch::Tensor means = ply.means.to(torch::kFloat64).contiguous();
   const double* p = means.data_ptr<double>();
   std::vector<int64_t> keep;
+  std::vector<double> weight;
   for (int64_t g = 0; g < means.size(0); ++g) {
     const core::Vec3 x{p[3 * g], p[3 * g + 1], p[3 * g + 2]};
-    if (grid.block_of(grid.frame.along(x), grid.frame.across(x)) == block) keep.push_back(g);
+    const double w = grid.blend_weight(block, grid.frame.along(x), grid.frame.across(x), blend);
+    if (w <= 0) continue;
+    keep.push_back(g);
+    weight.push_back(w);
   }
   const torch::Tensor index = torch::tensor(keep, torch::kInt64);
   io::GaussianPly out = ply;
   for (torch::Tensor* t :
        {&out.means, &out.log_scales, &out.quats, &out.logit_opacities, &out.sh_dc, &out.sh_rest})
     *t = t->index_select(0, index);
+  // opacity' = w * opacity, as a logit; weights of 1 leave the value as it was.
+  torch::Tensor logits = out.logit_opacities.to(torch::kFloat64).contiguous();
+  double* o = logits.data_ptr<double>();
+  faded = 0;
+  for (size_t i = 0; i < weight.size(); ++i) {
+    if (weight[i] >= 1) continue;
+    ++faded;
+    const double opacity = weight[i] / (1 + std::exp(-o[i]));
+    o[i] = std::log(opacity / (1 - opacity));
+  }
+  if (faded > 0) out.logit_opacities = logits.to(out.logit_opacities.scalar_type());
   return out;
 }
 
@@ -154,9 +172,11 @@ MergeSummary merge_blocks(const MergeOptions& options) {
   json blocks = json::array();
   double seconds = 0, peak_mib = 0;
   for (size_t b = 0; b < models.size(); ++b) {
-    parts.push_back(in_cell(models[b].ply, file.grid, int(b)));
+    int64_t faded = 0;
+    parts.push_back(in_reach(models[b].ply, file.grid, int(b), options.blend, faded));
     summary.trained.push_back(models[b].ply.means.size(0));
     summary.kept.push_back(parts.back().means.size(0));
+    summary.faded.push_back(faded);
     summary.gaussians += summary.kept.back();
     background += models[b].background.to(torch::kFloat64) / double(models.size());
     const json s = summary_or_null(train::RunPaths{runs[b]}.summary());
@@ -168,6 +188,7 @@ MergeSummary merge_blocks(const MergeOptions& options) {
                       {"run", fs::absolute(runs[b]).lexically_normal().string()},
                       {"gaussians_trained", summary.trained.back()},
                       {"gaussians_kept", summary.kept.back()},
+                      {"gaussians_faded", summary.faded.back()},
                       {"train_summary", s}});
   }
   const io::GaussianPly merged = join(parts);
@@ -211,6 +232,7 @@ MergeSummary merge_blocks(const MergeOptions& options) {
     }
     const json first = blocks.front()["train_summary"];
     json s = {{"merged_blocks", blocks},
+              {"seam_blend", options.blend},
               {"num_gaussians", summary.gaussians},
               {"bands", merged.bands()},
               {"seconds", seconds},

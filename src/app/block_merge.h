@@ -18,6 +18,11 @@ struct MergeOptions {
   // (block_00, ...); relative paths are from the current folder. Empty:
   // BLOCKS/{block}/run.
   std::string runs;
+  // The share of each overlap over which neighbouring blocks' Gaussians are
+  // cross-faded (io::BlockGrid::blend_weight: each Gaussian's opacity times
+  // its block's weight at its centre); 0 keeps each block's Gaussians in its
+  // own cell and nothing else (a hard cut at the cell borders).
+  double blend = 1.0;
   bool force = false;
 };
 
@@ -25,7 +30,9 @@ struct MergeOptions {
 std::filesystem::path block_run(const MergeOptions& options, const std::string& name);
 
 struct MergeSummary {
-  std::vector<int64_t> trained, kept;  // Gaussians per block: its run's, and in its cell
+  // Gaussians per block: its run's, those kept (weight above 0) and, of
+  // those, the ones faded (weight under 1).
+  std::vector<int64_t> trained, kept, faded;
   int64_t gaussians = 0;
 };
 

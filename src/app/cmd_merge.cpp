@@ -26,6 +26,12 @@ Action setup(CLI::App& parent) {
   cmd->add_option("--runs", args->options.runs,
                   "Where each block's run is, {block} standing for its folder name "
                   "(runs/{block}); default BLOCKS/{block}/run");
+  cmd->add_option("--seam-blend", args->options.blend,
+                  "Share of each overlap over which neighbouring blocks' Gaussians are "
+                  "cross-faded (their opacities weighed by a ramp across the border); 0: each "
+                  "block keeps only its own cell")
+      ->default_val(1.0)
+      ->check(within(0, 1));
   cmd->add_flag("--force", args->options.force, "Replace an earlier merged run");
   return [args] {
     MergeOptions options = args->options;
@@ -34,8 +40,9 @@ Action setup(CLI::App& parent) {
     const MergeSummary s = merge_blocks(options);
     for (size_t b = 0; b < s.kept.size(); ++b)
       core::log_info("merge: block " + std::to_string(b) + ": kept " + std::to_string(s.kept[b]) +
-                     " of " + std::to_string(s.trained[b]) +
-                     " Gaussians (the rest lie in other blocks' cells)");
+                     " of " + std::to_string(s.trained[b]) + " Gaussians, " +
+                     std::to_string(s.faded[b]) +
+                     " of them faded across the seams (the rest lie in other blocks' cells)");
     core::log_info("merge: " + std::to_string(s.gaussians) + " Gaussians -> " + args->out);
     return 0;
   };

@@ -90,13 +90,45 @@ TEST(BlocksCli, PartitionTrainMergeEvaluatesEveryHeldOutView) {
                     &out),
               0)
         << out;
-  ASSERT_EQ(ddhgs("merge " + blocks.string() + " --out " + merged.string(), &out), 0) << out;
-  // Exactly each block's Gaussians in its own cell.
+  // --seam-blend 0: exactly each block's Gaussians in its own cell, as trained.
+  const fs::path cut = root / "cut";
+  ASSERT_EQ(
+      ddhgs("-q merge " + blocks.string() + " --out " + cut.string() + " --seam-blend 0", &out), 0)
+      << out;
   int64_t expected = 0;
   for (size_t b = 0; b < file.blocks.size(); ++b)
     expected += gaussians_in_cell(blocks / file.blocks[b].name / "run" / "gaussians.ply", file.grid,
                                   int(b));
-  EXPECT_EQ(io::read_gaussian_ply(merged / "gaussians.ply").means.size(0), expected);
+  EXPECT_EQ(io::read_gaussian_ply(cut / "gaussians.ply").means.size(0), expected);
+  // By default the blocks are cross-faded across the border: every Gaussian
+  // with a weight above 0 (BlockGrid::blend_weight) is kept, its opacity
+  // times that weight, in block order.
+  ASSERT_EQ(ddhgs("merge " + blocks.string() + " --out " + merged.string(), &out), 0) << out;
+  const io::GaussianPly joint = io::read_gaussian_ply(merged / "gaussians.ply");
+  const torch::Tensor joint_opacity = torch::sigmoid(joint.logit_opacities.to(torch::kFloat64));
+  int64_t at = 0, faded = 0;
+  for (size_t b = 0; b < file.blocks.size(); ++b) {
+    const io::GaussianPly block =
+        io::read_gaussian_ply(blocks / file.blocks[b].name / "run" / "gaussians.ply");
+    const torch::Tensor means = block.means.to(torch::kFloat64).contiguous();
+    const torch::Tensor opacity = torch::sigmoid(block.logit_opacities.to(torch::kFloat64));
+    for (int64_t g = 0; g < means.size(0); ++g) {
+      const core::Vec3 x{means[g][0].item<double>(), means[g][1].item<double>(),
+                         means[g][2].item<double>()};
+      const double w =
+          file.grid.blend_weight(int(b), file.grid.frame.along(x), file.grid.frame.across(x), 1);
+      if (w <= 0) continue;
+      ASSERT_LT(at, joint.means.size(0));
+      EXPECT_TRUE(torch::equal(joint.means[at], block.means[g])) << at;
+      EXPECT_NEAR(joint_opacity[at].item<double>(), w * opacity[g].item<double>(), 1e-6) << at;
+      faded += w < 1;
+      ++at;
+    }
+  }
+  EXPECT_EQ(at, joint.means.size(0));
+  EXPECT_GT(at, expected);  // the margins' Gaussians of both neighbours
+  EXPECT_GT(faded, 0);
+  EXPECT_NE(out.find("faded across the seams"), std::string::npos) << out;
   const json config = json::parse(io::read_file(merged / "config.json"));
   EXPECT_EQ(fs::path(config["data"]["path"].get<std::string>()),
             fs::absolute(survey()).lexically_normal());
@@ -154,7 +186,8 @@ TEST(BlocksCli, LatentBlocksKeepTheirSpectraInTheMergedModel) {
     for (int64_t g = 0; g < means.size(0); ++g) {
       const core::Vec3 x{means[g][0].item<double>(), means[g][1].item<double>(),
                          means[g][2].item<double>()};
-      if (file.grid.block_of(file.grid.frame.along(x), file.grid.frame.across(x)) == int(b))
+      if (file.grid.blend_weight(int(b), file.grid.frame.along(x), file.grid.frame.across(x), 1) >
+          0)
         kept.push_back(g);
     }
     const torch::Tensor index = torch::tensor(kept, torch::kInt64);
@@ -227,6 +260,14 @@ TEST(BlocksCli, BadInputIsOneLineAndLeavesNothing) {
   EXPECT_NE(ddhgs("merge " + out_dir.string() + " --out " + (root / "run").string(), &out), 0);
   ASSERT_EQ(test::error_lines(out).size(), 1u) << out;
   EXPECT_NE(out.find((out_dir / "block_00" / "run").string()), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(root / "run"));
+  // A seam blend outside [0, 1] is refused before anything is read.
+  EXPECT_NE(
+      ddhgs("merge " + out_dir.string() + " --out " + (root / "run").string() + " --seam-blend 1.5",
+            &out),
+      0);
+  ASSERT_EQ(test::error_lines(out).size(), 1u) << out;
+  EXPECT_NE(out.find("--seam-blend"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(root / "run"));
   // A second partition into the same folder needs --force.
   EXPECT_NE(ddhgs("partition " + scene + " --out " + out_dir.string(), &out), 0);

@@ -87,6 +87,60 @@ TEST(BlockGrid, CellsMarginsAndTheBlockOfAPoint) {
   EXPECT_EQ(block_name(7, 150), "block_007");
 }
 
+// The cross-fade's weights against hand values: 1 deep in a cell, 1/2 on a
+// border between two cells, 1/4 at a corner of four, linear across the
+// margin on either side, nothing beyond it; no ramp at the footprint's outer
+// edges; over all blocks they sum to 1 everywhere.
+TEST(BlockGrid, BlendWeightsCrossFadeNeighboursAcrossTheirBorders) {
+  BlockGrid g;
+  g.footprint = {0, 8, -2, 2};
+  g.rows = 2;
+  g.cols = 4;
+  g.overlap = 0.25;  // margins of 0.5 m along u and v
+  // Block 5: row 1, column 1, cell [2, 4] x [0, 2]; block 4 is on its left.
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 3, 1, 1), 1);
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 2, 1, 1), 0.5);
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 2.25, 1, 1), 0.75);
+  EXPECT_DOUBLE_EQ(g.blend_weight(4, 2.25, 1, 1), 0.25);
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 2.5, 1, 1), 1);
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 1.5, 1, 1), 0);  // the far edge of its margin
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 1.4, 1, 1), 0);
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 2, 0, 1), 0.25);  // the corner of blocks 0, 1, 4, 5
+  EXPECT_DOUBLE_EQ(g.blend_weight(0, 2, 0, 1), 0.25);
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 3, 1.9, 1), 1);  // near the footprint's top edge
+  EXPECT_DOUBLE_EQ(g.blend_weight(4, -5, 1, 1), 1);   // beyond the footprint's left edge
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 3, 5, 1), 1);    // beyond its top edge
+  // Half the margin: the ramp is half as wide.
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 2.125, 1, 0.5), 0.75);
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 1.75, 1, 0.5), 0);
+  // blend 0, or no overlap: the cell alone.
+  EXPECT_DOUBLE_EQ(g.blend_weight(5, 2.01, 1, 0), 1);
+  EXPECT_DOUBLE_EQ(g.blend_weight(4, 2.01, 1, 0), 0);
+  BlockGrid cut = g;
+  cut.overlap = 0;
+  EXPECT_DOUBLE_EQ(cut.blend_weight(5, 2.01, 1, 1), 1);
+  EXPECT_DOUBLE_EQ(cut.blend_weight(4, 2.01, 1, 1), 0);
+  // A partition of unity, also where margins as wide as a cell would make
+  // the ramps of a cell's two borders meet (their half-width stops at half
+  // the cell).
+  BlockGrid wide = g;
+  wide.overlap = 1;
+  for (const BlockGrid* grid : {&g, &wide})
+    for (double u = -1; u <= 9; u += 0.0625)
+      for (double v = -3; v <= 3; v += 0.0625) {
+        double sum = 0;
+        for (int b = 0; b < grid->blocks(); ++b) {
+          const double w = grid->blend_weight(b, u, v, 1);
+          EXPECT_GE(w, 0);
+          EXPECT_LE(w, 1);
+          sum += w;
+        }
+        ASSERT_NEAR(sum, 1, 1e-12) << "at u " << u << ", v " << v;
+      }
+  // There the ramp's half-width is half the cell (1 m), not the 2 m margin.
+  EXPECT_DOUBLE_EQ(wide.blend_weight(5, 2.5, 1, 1), 0.75);
+}
+
 TEST(BlocksFile, RoundTripsAndRefusesMalformedFiles) {
   const fs::path dir = test::temp_dir("blocks_file");
   BlocksFile file;

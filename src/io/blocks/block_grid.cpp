@@ -46,6 +46,21 @@ int BlockGrid::block_of(double u, double v) const {
          index(u, footprint.u0, footprint.u1, cols);
 }
 
+double BlockGrid::blend_weight(int block, double u, double v, double blend) const {
+  if (!(blend > 0) || !(overlap > 0)) return block_of(u, v) == block ? 1.0 : 0.0;
+  // One axis: cell [lo, hi] of `count` cells, index i; the ramp's half-width h.
+  auto ramp = [&](double x, double lo, double hi, int i, int count) {
+    const double size = hi - lo, h = std::min(blend * overlap * size, 0.5 * size);
+    if (!(h > 0)) return 1.0;
+    double w = 1;
+    if (i > 0) w = std::min(w, std::clamp(0.5 + (x - lo) / (2 * h), 0.0, 1.0));
+    if (i < count - 1) w = std::min(w, std::clamp(0.5 + (hi - x) / (2 * h), 0.0, 1.0));
+    return w;
+  };
+  const GroundBox c = cell(block);
+  return ramp(u, c.u0, c.u1, block % cols, cols) * ramp(v, c.v0, c.v1, block / cols, rows);
+}
+
 std::string block_name(int block, int blocks) {
   const int width = std::max(2, int(std::to_string(std::max(0, blocks - 1)).size()));
   std::string digits = std::to_string(block);

@@ -44,6 +44,15 @@ struct BlockGrid {
   // The block whose cell holds ground point (u, v); points beyond the
   // footprint belong to the nearest edge cell, so every point has one.
   int block_of(double u, double v) const;
+  // How much of block `block`'s model to keep at ground point (u, v) when
+  // neighbouring blocks are cross-faded across their shared border: 1 deep in
+  // the cell, 1/2 on a border between two cells, 0 from `blend` of the
+  // margin beyond it, linear in between, the product of the ramps along u and
+  // along v. Across the footprint's outer edges there is no ramp. A ramp's
+  // half-width is blend x the margin, at most half the cell, so the blocks'
+  // weights at any point sum to 1. blend 0 (or no overlap): 1 in the cell
+  // (block_of), else 0.
+  double blend_weight(int block, double u, double v, double blend) const;
 };
 
 // "block_00", "block_01", ...: block folder names, as wide as the count needs.
