@@ -4,20 +4,24 @@
 # block trained with iterations in proportion to its training views (the
 # same iteration budget per Gaussian as the single run), merged, and
 # compared with one model trained on the whole flight: held-out PSNR
-# (eval), PSNR in the blocks' overlap zones and elsewhere
-# (scripts/lib/block_zones.py), peak memory and CPU time of every run.
+# (eval), PSNR in the blocks' overlap zones and elsewhere, in the held-out
+# captures and in the orthomosaic against the truth's orthographic
+# reflectance (scripts/lib/block_zones.py), peak memory and CPU time of
+# every run. The blocks are merged twice: cross-faded across the seams (the
+# default, merged/) and cut at the cell borders (--seam-blend 0, merged-cut/).
 #
 #   scripts/blocks_benchmark.sh [OUT]
 #
 # Environment: DDHGS (default build/ddhgs), VIEWS (48), LINES (4), WIDTH
 # (96), HEIGHT (72), ITERATIONS (of the single run; 3000), PRESET (demo),
-# BLOCKS (2x2), PYTHON (a python3 with numpy; default /usr/bin/python3).
+# BLOCKS (2x2), SEED (of the flight; 0), PYTHON (a python3 with numpy;
+# default /usr/bin/python3; gdal_translate reads the orthomosaics).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ddhgs="$(realpath "${DDHGS:-build/ddhgs}")"
 out="${1:-/tmp/ddhgs-blocks-benchmark}"
 views="${VIEWS:-48}" lines="${LINES:-4}" width="${WIDTH:-96}" height="${HEIGHT:-72}"
-iterations="${ITERATIONS:-3000}" preset="${PRESET:-demo}" grid="${BLOCKS:-2x2}"
+iterations="${ITERATIONS:-3000}" preset="${PRESET:-demo}" grid="${BLOCKS:-2x2}" seed="${SEED:-0}"
 python="${PYTHON:-/usr/bin/python3}"
 rm -rf "$out"
 mkdir -p "$out"
@@ -32,8 +36,19 @@ timed() {
 }
 
 "$ddhgs" -q synth --preset rig-nadir --views "$views" --lines "$lines" --field-spacing 2 \
-  --width "$width" --height "$height" --supersample 2 --out "$out/flight"
+  --width "$width" --height "$height" --supersample 2 --seed "$seed" --out "$out/flight"
 scene="$out/flight/cubes"
+# The cubes lie in the synthetic world's frame, which maps to the projected
+# CRS by the translation synth.json records: the scene's exact georeference
+# (what process --rig fits from exact GPS), so that render --ortho works.
+"$python" - "$out/flight" <<'PY'
+import json, sys
+g = json.load(open(sys.argv[1] + "/synth.json"))["georeference"]
+json.dump({"crs": "EPSG:%d" % g["epsg"], "epsg": g["epsg"],
+           "scene_to_crs": {"scale": 1.0, "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                            "translation": g["world_origin_crs_m"]}},
+          open(sys.argv[1] + "/cubes/georef.json", "w"), indent=2)
+PY
 "$ddhgs" -q partition "$scene" --blocks "$grid" --overlap 0.2 --out "$out/blocks"
 timed single "$ddhgs" -q train "$scene" --out "$out/single" --preset "$preset" \
   --iterations "$iterations" --checkpoint-every 0
@@ -47,11 +62,14 @@ for block in "$out"/blocks/block_*; do
     --iterations "$block_iterations" --checkpoint-every 0
 done
 "$ddhgs" merge "$out/blocks" --out "$out/merged"
-for run in single merged; do
+"$ddhgs" -q merge "$out/blocks" --out "$out/merged-cut" --seam-blend 0
+for run in single merged merged-cut; do
   echo "--- $run"
   "$ddhgs" eval "$out/$run" 2>&1 | sed -n '/PSNR/,/clean/p'
   "$ddhgs" -q render "$out/$run" --format npy
+  "$ddhgs" -q render "$out/$run" --ortho
 done
-"$python" scripts/lib/block_zones.py "$scene" "$out/blocks" "$out/single" "$out/merged"
+"$python" scripts/lib/block_zones.py "$scene" "$out/blocks" "$out/single" "$out/merged" \
+  "$out/merged-cut"
 awk '{cpu += $2 + $3} END {printf "blocks together: %.1f CPU s\n", cpu}' "$out"/block_*.time
 echo "done $(date -u '+%H:%M UTC'), $(uptime | sed 's/.*load/load/')"
