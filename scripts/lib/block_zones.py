@@ -12,8 +12,10 @@ blocks' margined cells) and over the rest (scripts/blocks_benchmark.sh):
 - ortho (when every run has renders/ortho/reflectance.tif and the flight
   its truth/ortho.npy): the orthomosaic, sampled bilinearly at the truth
   ortho's pixel centres, against it over the ground every run covers, which
-  weighs every point of the ground once; and the same by distance from the
-  nearest border between two cells (where the blocks are joined).
+  weighs every point of the ground once; the same over the interior only
+  (the ground under the flight lines: inside the camera centres' box, away
+  from the flight's edges, which few captures see); and by distance from
+  the nearest border between two cells (where the blocks are joined).
 
     block_zones.py SCENE BLOCKS RUN [RUN ...]
 
@@ -144,7 +146,7 @@ def read_geotiff(path):
     return data, info["geoTransform"], info["bands"][0].get("noDataValue")
 
 
-def ortho(flight, blocks, runs):
+def ortho(flight, scene, blocks, runs):
     synth = json.load(open(os.path.join(flight, "synth.json")))
     truth = np.load(os.path.join(flight, synth["ortho"]["file"])).astype(np.float64)
     gt = synth["ortho"]["geotransform"]
@@ -156,6 +158,9 @@ def ortho(flight, blocks, runs):
     world = np.stack([east - e0, north - n0, np.zeros_like(east)], -1)
     u, v = ground_uv(blocks, world)
     zone, border = in_zone(blocks, u, v), border_distance(blocks, u, v)
+    cu, cv = ground_uv(blocks, np.array([np.array(f["transform_matrix"])[:3, 3]
+                                         for f in scene["frames"]]))
+    interior = (u >= cu.min()) & (u <= cu.max()) & (v >= cv.min()) & (v <= cv.max())
     covered = np.ones(zone.shape, dtype=bool)
     images = {}
     for run in runs:
@@ -183,6 +188,8 @@ def ortho(flight, blocks, runs):
     for key, image in images.items():
         e = ((image - truth) ** 2).mean(-1)[covered]
         figures = zone_figures(e, zone[covered], plant[covered])
+        inner = interior[covered]
+        figures["interior"] = zone_figures(e[inner], zone[covered][inner], plant[covered][inner])
         figures["by_border_distance_db"] = {
             f"{lo}-{hi} m": psnr(e[(border[covered] >= lo) & (border[covered] < hi)])
             for lo, hi in BORDER_BINS_M}
@@ -197,7 +204,7 @@ def main():
     flight = os.path.dirname(os.path.abspath(scene_dir))
     if os.path.exists(os.path.join(flight, "truth", "ortho.npy")) and all(
             os.path.exists(os.path.join(r, "renders", "ortho", "reflectance.tif")) for r in runs):
-        ortho(flight, blocks, runs)
+        ortho(flight, scene, blocks, runs)
 
 
 if __name__ == "__main__":
