@@ -1,6 +1,7 @@
 // `ddhgs merge`: the trained blocks of a partition (io/blocks/partition.h)
 // joined into one run folder. Each block keeps the Gaussians whose centres
-// lie in its own cell (the margin is another block's); the merged run's
+// lie in its own cell, and across a border with a neighbour the two are
+// cross-faded over their overlap (MergeOptions::blend); the merged run's
 // dataset is the partitioned scene, so `eval` measures every held-out view
 // of the flight and `render`, `report` and `export` read it as any run.
 #pragma once

@@ -19,7 +19,7 @@ Action setup(CLI::App& parent) {
   CLI::App* cmd = parent.add_subcommand(
       "merge",
       "Join the trained blocks of ddhgs partition into one run folder (each block's Gaussians "
-      "in its own cell)");
+      "in its own cell, neighbours cross-faded across their overlap)");
   cmd->add_option("blocks", args->blocks, "The partition's folder (holding blocks.json)")
       ->required();
   cmd->add_option("--out", args->out, "The merged run folder")->required();
