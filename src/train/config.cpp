@@ -191,6 +191,7 @@ constexpr AddedKey kAddedKeys[] = {
     {"optim.exposure_lr", "0.01"},    // correction off
     {"loss.exposure_prior", "0.01"},  // correction off
     {"optim.iterations_per_band_view", "0"},
+    {"camera_refinement.rig_warmup_fraction", "0"},  // rig runs had no warm-up
 };
 
 // The one section added whole since format_version 2 began.

@@ -137,6 +137,7 @@ CameraRefinementConfig parse_cameras(const json& c, const std::string& source) {
   o.rig_rotation_lr = read<double>(c, s, "rig_rotation_lr", source);
   o.rig_offset_lr = read<double>(c, s, "rig_offset_lr", source);
   o.rig_pull = read<double>(c, s, "rig_pull", source);
+  o.rig_warmup_fraction = read<double>(c, s, "rig_warmup_fraction", source);
   return o;
 }
 

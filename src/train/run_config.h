@@ -110,9 +110,11 @@ struct CameraRefinementConfig {
   double rotation_lr = 0, translation_lr = 0;
   // One correction per band camera of a rig scene, shared by every capture
   // (train/rig_refinement.h): Adam rates of its rotation (rad) and offset
-  // (scene extents), and the weight of its L2 pull towards the factory values.
+  // (scene extents), and the weight of its L2 pull towards the factory values;
+  // for the first rig_warmup_fraction of the iterations only the reference
+  // camera's views train, so the Gaussians settle where it places them.
   bool rig = false;
-  double rig_rotation_lr = 0, rig_offset_lr = 0, rig_pull = 0;
+  double rig_rotation_lr = 0, rig_offset_lr = 0, rig_pull = 0, rig_warmup_fraction = 0;
 };
 
 struct DensifyConfig {

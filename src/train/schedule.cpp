@@ -40,6 +40,8 @@ Schedule schedule_of(const RunConfig& config) {
   s.opacity_reset_every = interval(densify.opacity_reset_every_fraction, s.iterations);
   s.bands_drawn_until = of_run(config.loss.bands_per_step_until_fraction, s.iterations);
   s.views_cropped_until = of_run(config.loss.view_fraction_until_fraction, s.iterations);
+  const CameraRefinementConfig& cameras = config.camera_refinement;
+  s.reference_views_until = cameras.rig ? of_run(cameras.rig_warmup_fraction, s.iterations) : 0;
   return s;
 }
 

@@ -25,10 +25,14 @@ struct Schedule {
   int64_t bands_drawn_until = 0;
   // loss.view_fraction crops the views up to and including this iteration.
   int64_t views_cropped_until = 0;
+  // A rig run (camera_refinement.rig) trains on the reference camera's views
+  // alone up to and including this iteration; 0: from the start on all.
+  int64_t reference_views_until = 0;
 
   bool densifies(int64_t iteration) const { return iteration < densify_until; }
   bool draws_bands(int64_t iteration) const { return iteration <= bands_drawn_until; }
   bool crops_views(int64_t iteration) const { return iteration <= views_cropped_until; }
+  bool reference_views_only(int64_t iteration) const { return iteration <= reference_views_until; }
 };
 
 struct RunConfig;

@@ -69,8 +69,13 @@ void Trainer::set_learning_rates(int64_t iteration) {
   if (camera_refinement_)
     state_.adam.group("camera_refinement/translation").lr =
         config_.camera_refinement.translation_lr;
-  if (rig_refinement_)
-    state_.adam.group("rig_refinement/offset").lr = config_.camera_refinement.rig_offset_lr;
+  if (rig_refinement_) {
+    // The band cameras' corrections fall with them, to settle within a
+    // small fraction of their rate.
+    state_.adam.group("rig_refinement/rotation").lr =
+        late * config_.camera_refinement.rig_rotation_lr;
+    state_.adam.group("rig_refinement/offset").lr = late * config_.camera_refinement.rig_offset_lr;
+  }
 }
 
 render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor& sink,
@@ -99,13 +104,16 @@ torch::Tensor Trainer::render_camera(const core::Camera& camera) {
 }
 
 int Trainer::view_for(int64_t iteration) const {
-  // A fresh permutation of the training views every epoch, seeded by epoch.
-  const int64_t n = int64_t(scene_->train.size());
+  // A fresh permutation of the training views every epoch, seeded by epoch;
+  // a rig run's warm-up draws from its reference camera's views alone.
+  const bool warmup = !reference_train_.empty() && schedule_.reference_views_only(iteration);
+  const std::vector<int>& views = warmup ? reference_train_ : scene_->train;
+  const int64_t n = int64_t(views.size());
   const int64_t epoch = (iteration - 1) / n, position = (iteration - 1) % n;
   auto generator =
       at::make_generator<at::CPUGeneratorImpl>(mix_seed(config_.seed, uint64_t(2 * epoch + 1)));
   auto order = torch::randperm(n, generator, torch::kInt64);
-  return scene_->train[size_t(order[position].item<int64_t>())];
+  return views[size_t(order[position].item<int64_t>())];
 }
 
 torch::Tensor Trainer::band_map(const torch::Tensor& bands) const {

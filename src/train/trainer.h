@@ -164,6 +164,7 @@ class Trainer : private StageHost {
   CameraRefinement camera_refinement_{nullptr};  // camera_refinement.enabled
   ExposureCorrection exposure_{nullptr};         // model.exposure_correction
   RigRefinement rig_refinement_{nullptr};        // camera_refinement.rig
+  std::vector<int> reference_train_;             // its reference camera's training views
   std::unique_ptr<DiffusionTerm> diffusion_;     // loss.diffusion > 0
   std::unique_ptr<DiffusionStage> stage_;        // with diffusion_
   torch::Tensor wavelengths01_;                  // [N] the encoder's input

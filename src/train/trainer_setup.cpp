@@ -263,6 +263,9 @@ void Trainer::build_modules() {
   }
   if (config_.camera_refinement.rig) {
     rig_refinement_ = RigRefinement(*scene_);
+    for (int v : scene_->train)
+      if (scene_->views[size_t(v)].rig_camera == scene_->rig->reference_camera)
+        reference_train_.push_back(v);
     add_module("rig_refinement", rig_refinement_.ptr(), config_.camera_refinement.rig_rotation_lr);
   }
   const DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());

@@ -59,6 +59,18 @@ TEST(Schedule, FractionsBecomeIterationNumbersOfTheRun) {
   EXPECT_FALSE(s.draws_bands(601));
   // The rates other than the positions' fall in the last tenth.
   EXPECT_EQ(s.lr_decay_from, 810);
+  // Only a rig run's warm-up trains on the reference camera's views alone:
+  // its first fifth.
+  EXPECT_EQ(s.reference_views_until, 0);
+  EXPECT_FALSE(s.reference_views_only(1));
+  c["camera_refinement"]["rig"] = true;
+  s = train::schedule_of(train::parse_run_config(c, "test"));
+  EXPECT_EQ(s.reference_views_until, 180);
+  EXPECT_TRUE(s.reference_views_only(180));
+  EXPECT_FALSE(s.reference_views_only(181));
+  c["camera_refinement"]["rig_warmup_fraction"] = 0.0;
+  s = train::schedule_of(train::parse_run_config(c, "test"));
+  EXPECT_FALSE(s.reference_views_only(1));
   // An interval that rounds to 0 still happens every iteration; a zero
   // fraction switches it off.
   c["iterations"] = 4;
