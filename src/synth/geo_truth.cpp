@@ -29,7 +29,7 @@ GpsFix gps_fix(const WorldPlacement& place, const core::Vec3& world) {
   return {ll.latitude_deg, ll.longitude_deg, crs.z};
 }
 
-OrthoGrid flight_footprint(const std::vector<core::Camera>& cameras) {
+OrthoGrid flight_footprint(const std::vector<core::Camera>& cameras, const WorldPlacement& place) {
   core::require(!cameras.empty(), "synth: a footprint needs cameras");
   double left = std::numeric_limits<double>::max(), right = -left, bottom = left, top = -left;
   double pixel = 0;
@@ -49,12 +49,15 @@ OrthoGrid flight_footprint(const std::vector<core::Camera>& cameras) {
       }
     if (pixel == 0) pixel = eye.z / k.fx;
   }
+  // Edges on whole multiples of the pixel in the CRS, as `render --ortho`
+  // puts its own (GDAL's target-aligned pixels): a mosaic at this GSD then
+  // shares the truth's pixels, and no resampling blurs the comparison.
   OrthoGrid grid;
   grid.pixel = pixel;
-  grid.left = left;
-  grid.top = top;
-  grid.width = int(std::ceil((right - left) / pixel));
-  grid.height = int(std::ceil((top - bottom) / pixel));
+  grid.left = std::floor((place.easting_m + left) / pixel) * pixel - place.easting_m;
+  grid.top = std::ceil((place.northing_m + top) / pixel) * pixel - place.northing_m;
+  grid.width = int(std::ceil((right - grid.left) / pixel));
+  grid.height = int(std::ceil((grid.top - bottom) / pixel));
   return grid;
 }
 

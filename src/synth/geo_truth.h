@@ -38,8 +38,9 @@ GpsFix gps_fix(const WorldPlacement& place, const core::Vec3& world);
 
 // The ground the nadir cameras see (the union of their footprints on z = 0)
 // at the flight's own ground sample distance (the first camera's at z = 0),
-// whole pixels, north up.
-OrthoGrid flight_footprint(const std::vector<core::Camera>& cameras);
+// whole pixels, north up, its edges on whole multiples of the pixel in the
+// projected CRS (as `render --ortho` aligns its grid).
+OrthoGrid flight_footprint(const std::vector<core::Camera>& cameras, const WorldPlacement& place);
 
 // Four marks on the ground (z = 0) around the world's origin, inside the
 // grid and the ground disc (ground_radius, scene units), each with its

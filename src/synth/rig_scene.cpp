@@ -291,7 +291,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     // footprint, and marks on the ground, in the projected CRS.
     OrthoGrid grid;
     if (config.nadir) {
-      grid = flight_footprint(references);
+      grid = flight_footprint(references, place);
       io::write_npy(tmp / "truth" / "ortho.npy",
                     render_orthographic(scene, setup, grid, config.supersample)
                         .index_select(2, band_order)
