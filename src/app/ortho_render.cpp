@@ -69,12 +69,12 @@ int write_orthomosaic(const TrainedRun& run, const OrthoRequest& request) {
                  core::format_g(ground.height_m) + " m, relief " + core::format_g(ground.relief_m) +
                  " m; tiles seen from far above: parallax under " +
                  core::format_g(eval::kOrthoParallaxPx) + " px");
-  const eval::Orthomosaic mosaic = eval::render_orthomosaic(run.gaussians, georef, grid, ground);
+  const eval::Orthomosaic mosaic =
+      eval::render_orthomosaic(run.gaussians, georef, grid, ground, run.background);
   const torch::Tensor covered = mosaic.alpha >= float(kOrthoCoveredAlpha);
-  // What covers each pixel: the premultiplied render over no background,
-  // divided by its coverage.
-  const torch::Tensor reflectance =
-      mosaic.image / mosaic.alpha.clamp_min(float(kOrthoCoveredAlpha)).unsqueeze(2);
+  // What the model shows straight down, over its background as in every
+  // render (eval/orthomosaic.h says why not the Gaussians' colour alone).
+  const torch::Tensor& reflectance = mosaic.image;
   const double covered_fraction = covered.to(torch::kFloat64).mean().item<double>();
 
   io::GeoRaster raster;

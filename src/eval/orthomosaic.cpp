@@ -115,17 +115,20 @@ core::Camera ortho_tile_camera(const OrthoGrid& grid, const io::Georeference& ge
 }
 
 Orthomosaic render_orthomosaic(const model::Gaussians& gaussians, const io::Georeference& georef,
-                               const OrthoGrid& grid, const Ground& ground) {
+                               const OrthoGrid& grid, const Ground& ground,
+                               const torch::Tensor& background) {
   torch::NoGradGuard no_grad;
+  core::require(background.dim() == 1 && background.size(0) == gaussians.bands(),
+                "orthomosaic: the background needs one value per band of the model");
   Orthomosaic out;
   out.alpha = torch::zeros({grid.height, grid.width}, torch::kFloat32);
-  const torch::Tensor none = torch::zeros({gaussians.bands()}, torch::kFloat32);
+  const torch::Tensor bg = background.detach().to(torch::kFloat32).contiguous();
   const int64_t cols = (grid.width + kOrthoTile - 1) / kOrthoTile;
   const int64_t rows = (grid.height + kOrthoTile - 1) / kOrthoTile;
   for (int64_t r = 0; r < rows; ++r)
     for (int64_t c = 0; c < cols; ++c) {
       const core::Camera camera = ortho_tile_camera(grid, georef, ground, c, r);
-      const render::RenderOutput tile = model::render_gaussians(gaussians, camera, none);
+      const render::RenderOutput tile = model::render_gaussians(gaussians, camera, bg);
       const int64_t y0 = r * kOrthoTile, x0 = c * kOrthoTile;
       const int64_t h = camera.intrinsics.height, w = camera.intrinsics.width;
       if (!out.image.defined())  // M bands: N, or an output map's

@@ -57,13 +57,19 @@ core::Camera ortho_tile_camera(const OrthoGrid& grid, const io::Georeference& ge
                                const Ground& ground, int64_t tile_col, int64_t tile_row);
 
 struct Orthomosaic {
-  torch::Tensor image;  // [H, W, M] float32: what covers each pixel (over no background)
+  torch::Tensor image;  // [H, W, M] float32: what a camera straight above sees
   torch::Tensor alpha;  // [H, W] float32: how much of the pixel the Gaussians cover
 };
 
-// The Gaussians rendered over the grid, tile by tile (a colour model's
-// output map applies, as in every render).
+// The Gaussians rendered over the grid, tile by tile, over the run's
+// background [N] as every view is rendered (a colour model's output map
+// applies). Training fits that composite to the captures, so it is the
+// model's reflectance; the Gaussians' colour alone (image / alpha) is not
+// fitted where alpha < 1, and a model that leaves the ground part
+// transparent (alpha 0.84 on average on the synthetic strip) would read
+// brighter or darker there by its background's difference.
 Orthomosaic render_orthomosaic(const model::Gaussians& gaussians, const io::Georeference& georef,
-                               const OrthoGrid& grid, const Ground& ground);
+                               const OrthoGrid& grid, const Ground& ground,
+                               const torch::Tensor& background);
 
 }  // namespace ddhgs::eval

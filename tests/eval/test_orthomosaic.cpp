@@ -99,7 +99,7 @@ TEST(Orthomosaic, GaussiansLandAtTheirCrsPixelWhateverTheirHeight) {
   const model::Gaussians m = blobs(g, at, 0.12);
   const Ground ground = model_ground(m, g);
   EXPECT_NEAR(ground.height_m, 120.95, 0.3);
-  const Orthomosaic mosaic = render_orthomosaic(m, g, grid, ground);
+  const Orthomosaic mosaic = render_orthomosaic(m, g, grid, ground, torch::zeros({2}));
   ASSERT_EQ(mosaic.image.size(0), 300);
   ASSERT_EQ(mosaic.image.size(1), 600);
   const torch::Tensor alpha = mosaic.alpha.to(torch::kFloat64);
@@ -121,6 +121,23 @@ TEST(Orthomosaic, GaussiansLandAtTheirCrsPixelWhateverTheirHeight) {
   }
   // Far from every blob: nothing covers.
   EXPECT_EQ(mosaic.alpha[290][590].item<float>(), 0);
+
+  // Over a background, as every view is rendered: the blob's colour plus
+  // the background through what it leaves uncovered, the background alone
+  // far from it.
+  const Orthomosaic over = render_orthomosaic(m, g, grid, ground, torch::tensor({0.3f, 0.1f}));
+  for (const core::Vec3& p : at) {
+    const int64_t ci = int64_t((p.x - grid.left_m) / grid.gsd_m) + 3;
+    const int64_t ri = int64_t((grid.top_m - p.y) / grid.gsd_m);
+    const double a = mosaic.alpha[ri][ci].item<double>();
+    ASSERT_GT(a, 0.05);
+    ASSERT_LT(a, 0.95);
+    EXPECT_NEAR(over.image[ri][ci][0].item<double>(), 0.8 * a + 0.3 * (1 - a), 1e-3);
+    EXPECT_NEAR(over.image[ri][ci][1].item<double>(), 0.8 * a + 0.1 * (1 - a), 1e-3);
+  }
+  EXPECT_NEAR(over.image[290][590][0].item<float>(), 0.3, 1e-6);
+  EXPECT_NEAR(over.image[290][590][1].item<float>(), 0.1, 1e-6);
+  EXPECT_THROW(render_orthomosaic(m, g, grid, ground, torch::zeros({3})), core::Error);
 }
 
 }  // namespace
