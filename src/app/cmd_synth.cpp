@@ -19,6 +19,7 @@ struct SynthArgs {
   synth::SynthConfig flags;  // values of the flags given; others unused
   bool no_ground = false;
   bool noisy_edges = false;
+  bool gcp_targets = false;
   std::string light_factors;  // comma-separated, one per capture
   std::string gps_origin;     // LAT,LON
 };
@@ -57,6 +58,7 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   set("--field-spacing", c.field_spacing_m, f.field_spacing_m);
   set("--rig-perturb-deg", c.rig_perturb_deg, f.rig_perturb_deg);
   set("--rig-offset-cm", c.rig_offset_cm, f.rig_offset_cm);
+  set("--gps-noise", c.gps_noise_m, f.gps_noise_m);
   if (!a.gps_origin.empty()) {
     const std::vector<double> origin = parse_number_list(a.gps_origin, "--gps-origin");
     core::require(origin.size() == 2, "--gps-origin",
@@ -66,6 +68,7 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   }
   if (a.no_ground) c.ground = false;
   if (a.noisy_edges) c.noisy_edges = true;
+  if (a.gcp_targets) c.gcp_targets = true;
   return c;
 }
 
@@ -133,6 +136,14 @@ Action setup(CLI::App& parent) {
                   "degrees; default 51.8091,-0.3727, a field in England, ground 120 m above the "
                   "ellipsoid); every capture's EXIF GPS is its true position from there (world "
                   "x east, y north, metres)");
+  cmd->add_option("--gps-noise", f.gps_noise_m,
+                  "rig presets: each capture's EXIF GPS is off its true position by a normal "
+                  "error of this standard deviation (metres) along east, north and up, drawn "
+                  "from --seed; synth.json records each error (default 0: exact)");
+  cmd->add_flag("--gcp-targets", args->gcp_targets,
+                "rig-nadir: print the ground control points on the ground as survey targets "
+                "(black and white 2 x 2 checkers, 10 ground pixels a side, centred on each "
+                "point); other pixels stay as they are");
   cmd->add_flag("--no-ground", args->no_ground, "Leave out the ground disc");
   cmd->add_flag("--noisy-edges", args->noisy_edges, "Much noisier edge bands (ablations)");
   return [args, cmd] {

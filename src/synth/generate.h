@@ -71,6 +71,15 @@ struct SynthConfig {
   // field of Rothamsted Research, England.
   double gps_latitude_deg = 51.8091, gps_longitude_deg = -0.3727;
   double gps_ground_m = 120;
+  // With rig: each capture's EXIF GPS is off its true position by a
+  // seeded normal error of this standard deviation (metres) along each of
+  // east, north and up, as a consumer receiver's is; the errors are
+  // recorded in synth.json.
+  double gps_noise_m = 0;
+  // With nadir: the ground control points are printed on the ground as
+  // survey targets, black and white 2 x 2 checkers 10 of the flight's
+  // ground pixels a side, centred on each point (NE and SW quarters black).
+  bool gcp_targets = false;
 
   std::vector<double> wavelengths_nm() const;
 };

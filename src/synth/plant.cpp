@@ -368,7 +368,19 @@ void PlantScene::shade(const Ray& ray, const Nearest& found, SurfaceHit* hit) co
       hit->material_b = kSoilWet;
       hit->specular = 0;
       break;
-    default: {  // ground disc: woven mat with slow blotches
+    default: {  // ground disc: woven mat with slow blotches, or a target's paint
+      for (const GroundTarget& target : targets) {
+        const double dx = p.x - target.x, dy = p.y - target.y;
+        if (std::abs(dx) < target.half && std::abs(dy) < target.half) {
+          hit->mix = 0;
+          hit->material_a = scene_materials() + ((dx > 0) == (dy > 0) ? 1 : 0);
+          hit->material_b = hit->material_a;
+          hit->specular = 0;
+          normal = normal.normalized();
+          hit->normal = normal.dot(ray.dir) > 0 ? normal * -1.0 : normal;
+          return;
+        }
+      }
       double weave = 0.5 + 0.5 * std::sin(60 * p.x) * std::sin(60 * p.y);
       double blotch = value_noise(p * 4.0, seed ^ 0x6a7dull);
       hit->mix = float(std::clamp(0.35 * weave + 0.65 * blotch, 0.0, 1.0));
@@ -398,6 +410,10 @@ std::vector<std::function<double(double)>> PlantScene::material_spectra() const 
     pale.chlorophyll *= 0.55;
     pale.senescence = std::min(1.0, t.senescence + 0.45);
     out.push_back([pale](double nm) { return leaf_reflectance(nm, pale); });
+  }
+  if (!targets.empty()) {  // matte paint, flat across the spectrum
+    out.push_back([](double) { return 0.6; });
+    out.push_back([](double) { return 0.04; });
   }
   return out;
 }

@@ -63,6 +63,13 @@ struct SurfaceHit {
   float shininess = 1;  // Blinn-Phong exponent
 };
 
+// A survey target printed on the ground (z = 0): a 2 x 2 checker of
+// black and white squares around (x, y), half a side `half` (scene units);
+// the north-east and south-west quarters black.
+struct GroundTarget {
+  double x = 0, y = 0, half = 0;
+};
+
 class PlantScene {
  public:
   // Same seed, same plant. ground: add the textured ground disc.
@@ -73,9 +80,12 @@ class PlantScene {
   // Whether anything blocks the ray before max_t (shadow rays).
   bool occluded(const Ray& ray, double max_t) const;
 
-  // Reflectance of every material slot (kLeafMaterials + 2 * leaves entries).
+  // Reflectance of every material slot (kLeafMaterials + 2 * leaves
+  // entries, then the targets' white and black when there are targets).
   std::vector<std::function<double(double)>> material_spectra() const;
-  int material_count() const { return kLeafMaterials + 2 * int(leaves.size()); }
+  int material_count() const { return scene_materials() + (targets.empty() ? 0 : 2); }
+  // The slots of the plant, pot and ground, without the targets' paint.
+  int scene_materials() const { return kLeafMaterials + 2 * int(leaves.size()); }
 
   // Tight axis-aligned box of the plant and pot (not the ground), for framing.
   core::Vec3 box_min, box_max;
@@ -90,6 +100,8 @@ class PlantScene {
   std::vector<core::Vec3> plants{core::Vec3{0, 0, 0}};
   bool ground = true;
   double ground_radius = 1.6;
+  // Printed on the ground disc (none by default).
+  std::vector<GroundTarget> targets;
   uint64_t seed = 0;
 
  private:

@@ -29,7 +29,9 @@ SpectralSetup make_spectral_setup(const PlantScene& scene,
   for (int b = 0; b < n; ++b) {
     setup.response.push_back(sensor_response(wavelengths_nm[b]));
     lamp_response[b] = lamp_power(wavelengths_nm[b]) * setup.response[b];
-    for (size_t m = 0; m < spectra.size(); ++m) {
+    // The scene's own materials set the gain; the targets' paint does
+    // not, so printing targets changes no other pixel.
+    for (size_t m = 0; m < size_t(scene.scene_materials()); ++m) {
       double light = m == kBackground ? lighting.backdrop : lighting.ambient + lighting.sun;
       brightest = std::max(brightest, setup.reflectance[m * n + b] * light * lamp_response[b]);
     }

@@ -26,6 +26,8 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// A ground control point's target: 10 of the flight's ground pixels a side.
+constexpr double kGcpTargetHalfPixels = 5;
 // RedEdge-MX: 1280 px across a 4.8 mm sensor (3.75 um pixels), 5.4 mm lens.
 constexpr double kSensorWidthMm = 4.8;
 constexpr double kFocalMm = 5.4;
@@ -133,7 +135,6 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     PlantScene scene = PlantScene::build(config.seed, config.ground);
     NoiseModel noise;
     noise.scale = config.noise_scale;
-    const SpectralSetup setup = make_spectral_setup(scene, wavelengths, noise);
     RigOptions options = rig_options(config);
     options.k1 = 0;  // the band images' metadata records no lens distortion
     const Flight flight{config.lines, config.overlap, config.side_overlap, config.altitude_m};
@@ -144,6 +145,30 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     const core::Intrinsics& k = references.front().intrinsics;
     const std::vector<double> light = capture_light_factors(config);
     const WorldPlacement place = world_placement(config);
+    // A survey's truths: the clean scene straight down over the flight's
+    // footprint, and marks on the ground, in the projected CRS; printed on
+    // the ground as targets when asked.
+    OrthoGrid grid;
+    nlohmann::json control_points;
+    if (config.nadir) {
+      grid = flight_footprint(references, place);
+      control_points = ground_control_points(place, grid, scene.ground_radius);
+      if (config.gcp_targets)
+        for (const auto& p : control_points)
+          scene.targets.push_back({p["world_xyz"][0].get<double>(), p["world_xyz"][1].get<double>(),
+                                   kGcpTargetHalfPixels * grid.pixel});
+    }
+    // Each capture's GPS error (east, north, up; metres), drawn from its own
+    // stream so the images stay as they are without it.
+    std::vector<core::Vec3> gps_error(references.size());
+    if (config.gps_noise_m > 0) {
+      std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), 0x6b5e0u};
+      std::mt19937_64 rng(seq);
+      std::normal_distribution<double> normal(0.0, config.gps_noise_m);
+      for (core::Vec3& e : gps_error) e = {normal(rng), normal(rng), normal(rng)};
+    }
+    // After the targets: their paint has its own slots.
+    const SpectralSetup setup = make_spectral_setup(scene, wavelengths, noise);
 
     // The panel capture as one is taken in the field: a grey panel (radiance
     // albedo x irradiance / pi) lying off-centre on textured tarmac, a
@@ -246,7 +271,8 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         io::RigBandImage b = band_metadata(band, k, "capture" + std::to_string(c), 0.0004);
         b.file = tmp / "captures" / band_file(stem, band.index);
         // The rig's GPS: where camera 1 (the reference pose) truly is.
-        const GpsFix fix = gps_fix(place, references[size_t(c)].camera_to_world().translation());
+        const GpsFix fix = gps_fix(
+            place, references[size_t(c)].camera_to_world().translation() + gps_error[size_t(c)]);
         b.has_position = true;
         b.latitude_deg = fix.latitude_deg;
         b.longitude_deg = fix.longitude_deg;
@@ -287,11 +313,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     io::write_transforms(tmp / "truth" / "transforms.json", truth);
     io::write_point_ply(tmp / "cubes" / "points.ply", cloud);
     io::write_transforms(tmp / "cubes" / "transforms.json", cubes);
-    // A survey's truths: the clean scene straight down over the flight's
-    // footprint, and marks on the ground, in the projected CRS.
-    OrthoGrid grid;
     if (config.nadir) {
-      grid = flight_footprint(references, place);
       io::write_npy(tmp / "truth" / "ortho.npy",
                     render_orthographic(scene, setup, grid, config.supersample)
                         .index_select(2, band_order)
@@ -356,7 +378,20 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
                     {"width", grid.width},
                     {"height", grid.height},
                     {"wavelengths_nm", truth.wavelengths_nm}};
-      j["ground_control_points"] = ground_control_points(place, grid, scene.ground_radius);
+      j["ground_control_points"] = control_points;
+      if (config.gcp_targets)
+        j["gcp_targets"] = {{"side_m", 2 * kGcpTargetHalfPixels * grid.pixel},
+                            {"pattern",
+                             "2 x 2 checker centred on each point, north-east and "
+                             "south-west quarters black (reflectance 0.04), the others "
+                             "white (0.6)"}};
+    }
+    if (config.gps_noise_m > 0) {
+      nlohmann::json errors = nlohmann::json::array();
+      for (const core::Vec3& e : gps_error) errors.push_back({e.x, e.y, e.z});
+      j["gps_noise"] = {{"sigma_m", config.gps_noise_m},
+                        {"axes", "east, north, up"},
+                        {"capture_error_m", errors}};
     }
     j["panel_albedo"] = albedo;
     io::write_file_atomically(tmp / "synth.json", j.dump(2) + "\n");
