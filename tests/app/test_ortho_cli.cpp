@@ -5,7 +5,9 @@
 // GDAL (gdalinfo, gdal_translate) reads back: the CRS, the geotransform,
 // each band's wavelength and the nodata value. The orthomosaic is measured
 // against the truth's orthographic reflectance over the area it covers
-// (PSNR). DDHGS_ORTHO_ITERATIONS lengthens the training for
+// (PSNR); flown with the ground control points printed as targets, each
+// target is found in it within one ground sample distance of its true
+// projected coordinates. DDHGS_ORTHO_ITERATIONS lengthens the training for
 // docs/benchmarks.md.
 #include <gtest/gtest.h>
 
@@ -18,6 +20,7 @@
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
 #include "reliability/cli_support.h"
+#include "support/checker_target.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -191,6 +194,108 @@ TEST(OrthoCli, AGeoreferencedStripRendersAnOrthomosaicThatMatchesTheTruth) {
   EXPECT_TRUE(fs::exists(ortho / "ndvi.png"));
   EXPECT_TRUE(fs::exists(ortho / "reflectance.png"));
   EXPECT_TRUE(fs::exists(ortho / "reflectance.tif"));  // the earlier product stays
+}
+
+// The ground control points as a survey checks them: the strip flown with
+// its control points printed on the ground as targets, trained, and each
+// target's centre found in the GeoTIFF (as GDAL reads it) against its true
+// projected coordinates, within one ground sample distance.
+TEST(OrthoCli, GroundControlTargetsLandWithinOneGroundSampleDistance) {
+  const fs::path root = test::temp_dir("ortho_gcp");
+  const fs::path strip = root / "strip", scene = root / "scene", run = root / "run";
+  std::string out;
+  ASSERT_EQ(ddhgs("synth --preset rig-nadir --gcp-targets --out " + strip.string(), &out), 0)
+      << out;
+  ASSERT_EQ(ddhgs("process " + (strip / "captures").string() + " --rig --skip-colmap --poses " +
+                      (strip / "truth" / "transforms.json").string() + " --out " + scene.string(),
+                  &out),
+            0)
+      << out;
+  const char* env = std::getenv("DDHGS_ORTHO_ITERATIONS");
+  const std::string iterations = env && *env ? env : "800";
+  ASSERT_EQ(ddhgs("train " + scene.string() + " --out " + run.string() +
+                      " --preset demo --iterations " + iterations + " --set output.test_every=0",
+                  &out),
+            0)
+      << out;
+  ASSERT_EQ(ddhgs("render " + run.string() + " --ortho", &out), 0) << out;  // the flight's GSD
+  const Raster r = read_with_gdal(run / "renders" / "ortho" / "reflectance.tif");
+  const json synth = read_json(strip / "synth.json");
+  const double truth_gsd = synth["ortho"]["geotransform"][1].get<double>();
+  EXPECT_NEAR(r.gt[1], truth_gsd, 0.02 * truth_gsd);  // the flight's own, about the truth's
+  const double side_m = synth["gcp_targets"]["side_m"].get<double>();
+  ASSERT_EQ(synth["ground_control_points"].size(), 4u);
+  for (const json& p : synth["ground_control_points"]) {
+    const double east = p["easting_m"].get<double>(), north = p["northing_m"].get<double>();
+    const double col = (east - r.gt[0]) / r.gt[1], row = (north - r.gt[3]) / r.gt[5];
+    auto value = [&r](int64_t y, int64_t x) {
+      double v = 0;
+      for (int64_t b = 0; b < r.bands; ++b) {
+        const float p = r.at(b, y, x);
+        if (p == -9999.0f) return double(NAN);
+        v += p;
+      }
+      return v;
+    };
+    const test::TargetFix fix =
+        test::find_checker_target(value, r.width, r.height, col, row, 0.5 * side_m / r.gt[1], 3);
+    ASSERT_TRUE(fix.found) << p["name"];
+    const double de = (fix.col - col) * r.gt[1], dn = (fix.row - row) * r.gt[5];
+    std::printf(
+        "%s: target found %.3f m east, %.3f m north of its coordinates (GSD %.4f m), "
+        "contrast %.2f\n",
+        p["name"].get<std::string>().c_str(), de, dn, r.gt[1], fix.contrast);
+    EXPECT_LT(std::hypot(de, dn), r.gt[1]) << p["name"];
+    EXPECT_GT(fix.contrast, 1.0) << p["name"];  // the checker, not the ground's weave
+  }
+}
+
+// Georeferencing from noisy GPS: a survey of 200 captures (10 flight lines
+// at 40 m, about 240 x 120 m) whose every EXIF GPS is off by a normal error
+// of 2 m along each axis. The fitted similarity, applied to the ground
+// control points' scene coordinates (the truth's poses: the scene is the
+// truth's world), places them within 0.5 m of their true projected
+// coordinates, while the GPS residuals show the noise (about 2 m x sqrt 3).
+TEST(OrthoCli, NoisyGpsPlacesTheControlPointsWithinHalfAMetre) {
+  const fs::path root = test::temp_dir("ortho_gps_noise");
+  const fs::path survey = root / "survey", scene = root / "scene";
+  std::string out;
+  ASSERT_EQ(ddhgs("synth --preset rig-nadir --views 200 --lines 10 --altitude 40 --width 32 "
+                  "--height 24 --supersample 1 --points 200 --gps-noise 2 --out " +
+                      survey.string(),
+                  &out),
+            0)
+      << out;
+  ASSERT_EQ(ddhgs("process " + (survey / "captures").string() + " --rig --skip-colmap --poses " +
+                      (survey / "truth" / "transforms.json").string() + " --out " + scene.string(),
+                  &out),
+            0)
+      << out;
+  const json georef = read_json(scene / "georef.json");
+  const json synth = read_json(survey / "synth.json");
+  EXPECT_EQ(georef["fit"]["captures"], 200);
+  const double rms = georef["fit"]["gps_rms_m"].get<double>();
+  std::printf("GPS residuals: RMS %.2f m, worst %.2f m (noise 2 m per axis)\n", rms,
+              georef["fit"]["gps_worst_m"].get<double>());
+  EXPECT_GT(rms, 0.8 * 2 * std::sqrt(3.0));
+  EXPECT_LT(rms, 1.2 * 2 * std::sqrt(3.0));
+  const json& s = georef["scene_to_crs"];
+  ASSERT_EQ(synth["ground_control_points"].size(), 4u);
+  for (const json& p : synth["ground_control_points"]) {
+    double crs[3];
+    for (size_t i = 0; i < 3; ++i) {
+      crs[i] = s["translation"][i].get<double>();
+      for (size_t k = 0; k < 3; ++k)
+        crs[i] += s["scale"].get<double>() * s["rotation"][i][k].get<double>() *
+                  p["world_xyz"][k].get<double>();
+    }
+    const double horizontal =
+        std::hypot(crs[0] - p["easting_m"].get<double>(), crs[1] - p["northing_m"].get<double>());
+    const double vertical = crs[2] - p["height_m"].get<double>();
+    std::printf("%s: placed %.3f m from its coordinates horizontally, %.3f m vertically\n",
+                p["name"].get<std::string>().c_str(), horizontal, vertical);
+    EXPECT_LT(std::hypot(horizontal, vertical), 0.5) << p["name"];
+  }
 }
 
 // A scene without GPS: no georef.json, and --ortho is one error naming the
