@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kOrthoNodata = -9999;
-constexpr double kOrthoCoveredAlpha = 0.5;  // a pixel at least half covered holds a value
+using eval::kOrthoCoveredAlpha;
 
 // values [H, W, B] where covered, kOrthoNodata elsewhere.
 torch::Tensor with_nodata(const torch::Tensor& values, const torch::Tensor& covered) {

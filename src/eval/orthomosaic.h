@@ -24,8 +24,9 @@
 
 namespace ddhgs::eval {
 
-constexpr int kOrthoTile = 512;            // pixels, each side
-constexpr double kOrthoParallaxPx = 0.05;  // the largest displacement allowed
+constexpr int kOrthoTile = 512;             // pixels, each side
+constexpr double kOrthoParallaxPx = 0.05;   // the largest displacement allowed
+constexpr double kOrthoCoveredAlpha = 0.5;  // a pixel at least half covered holds a value
 
 // A north-up grid in the CRS: pixel (col, row) covers east left_m + col gsd
 // to + gsd and north top_m - row gsd to - gsd.

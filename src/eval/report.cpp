@@ -2,16 +2,20 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
+#include "core/colour.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "eval/evaluate.h"
 #include "eval/metrics.h"
+#include "eval/orthomosaic.h"
 #include "eval/report_assets.h"
 #include "eval/report_splats.h"
 #include "eval/report_views.h"
+#include "eval/vegetation_index.h"
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
 #include "io/files/output_folder.h"
@@ -355,6 +359,68 @@ void write_static_files(const fs::path& stage, const json& viewer_scripts) {
   }
 }
 
+// The projected CRS's name for the report ("EPSG:32630, WGS 84 / UTM zone 30N").
+std::string crs_name(int epsg) {
+  std::string name = "EPSG:" + std::to_string(epsg);
+  if ((epsg > 32600 && epsg <= 32660) || (epsg > 32700 && epsg <= 32760))
+    name += ", WGS 84 / UTM zone " + std::to_string(epsg % 100) + (epsg < 32700 ? "N" : "S");
+  return name;
+}
+
+constexpr int64_t kReportOrthoMaxPx = 1200;  // the longer side of the report's orthomosaic
+
+// A georeferenced run's orthomosaic (pseudo-RGB) and NDVI map as pictures
+// under assets/ortho/, rendered as `render --ortho` renders them at the
+// flight's own GSD (coarser when the footprint would exceed
+// kReportOrthoMaxPx a side), uncovered pixels mid grey; null when the scene
+// has no georeference.
+json write_ortho_figures(const fs::path& stage, const io::Scene& scene,
+                         const model::Gaussians& gaussians, const torch::Tensor& background) {
+  if (!scene.georef) return nullptr;
+  const io::Georeference& georef = *scene.georef;
+  const Ground ground = model_ground(gaussians, georef);
+  OrthoGrid grid = flight_grid(scene, georef, ground, 0);
+  const int64_t longest = std::max(grid.width, grid.height);
+  if (longest > kReportOrthoMaxPx)
+    grid = flight_grid(scene, georef, ground,
+                       grid.gsd_m * double(longest) / double(kReportOrthoMaxPx) * 1.001);
+  const Orthomosaic mosaic = render_orthomosaic(gaussians, georef, grid, ground, background);
+  const torch::Tensor covered = (mosaic.alpha >= float(kOrthoCoveredAlpha)).unsqueeze(2);
+  auto shown = [&covered](const torch::Tensor& colours) {
+    return core::to_u8(torch::where(covered, colours, torch::full({}, 0.5f)).clamp(0, 1));
+  };
+  fs::create_directories(stage / "assets" / "ortho");
+  json files = json::array();
+  io::write_png(stage / "assets" / "ortho" / "reflectance.png",
+                shown(picture(mosaic.image.clamp(0, 1), scene.wavelengths_nm, BandSelection{},
+                              Colormap::Viridis)));
+  files.push_back({{"src", "assets/ortho/reflectance.png"},
+                   {"title", "Reflectance orthomosaic (pseudo-RGB of every band)"}});
+  std::string ndvi_note;
+  try {
+    const torch::Tensor map =
+        index_band_map(find_vegetation_index("ndvi", "ndvi"), scene.wavelengths_nm);
+    const torch::Tensor values = index_values(mosaic.image, map);
+    io::write_png(stage / "assets" / "ortho" / "ndvi.png", shown(index_picture(values)));
+    files.push_back({{"src", "assets/ortho/ndvi.png"},
+                     {"title", "NDVI (NIR - red) / (NIR + red): -1 red, 0 yellow, +1 green"}});
+  } catch (const core::Error& e) {
+    ndvi_note = std::string(" No NDVI map: ") + e.what() + ".";
+  }
+  const double covered_share = covered.to(torch::kFloat64).mean().item<double>();
+  char corner[64];
+  std::snprintf(corner, sizeof corner, "%.2f E %.2f N", grid.left_m, grid.top_m);
+  return {
+      {"files", files},
+      {"caption", "North up. " + std::to_string(grid.width) + " x " + std::to_string(grid.height) +
+                      " px at a ground sample distance of " + number(grid.gsd_m) + " m, CRS " +
+                      crs_name(georef.epsg) + ", top-left corner " + corner + "; " +
+                      std::to_string(int(std::lround(100 * covered_share))) +
+                      " % covered (grey: no Gaussian covers the pixel). `ddhgs render RUN "
+                      "--ortho` writes the GeoTIFFs." +
+                      ndvi_note}};
+}
+
 // Writes the whole report into stage (an empty folder).
 void build_report(const fs::path& stage, const io::Scene& scene, const model::Gaussians& gaussians,
                   const torch::Tensor& background, const RunRecords& records,
@@ -365,6 +431,7 @@ void build_report(const fs::path& stage, const io::Scene& scene, const model::Ga
   const ViewResults results =
       render_and_measure(stage, scene, gaussians, background, views.indices, options);
   json data = report_data(scene, gaussians, records, options, views, results);
+  data["ortho"] = write_ortho_figures(stage, scene, gaussians, background);
   io::write_file_atomically(stage / "assets" / "data.js",
                             "window.DDHGS_REPORT = " + data.dump() + ";\n");
   json splats = splat_view_data(gaussians, scene, background, views.indices.front());

@@ -19,6 +19,7 @@
 
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
+#include "io/image/image.h"
 #include "reliability/cli_support.h"
 #include "support/checker_target.h"
 #include "support/test_support.h"
@@ -248,6 +249,44 @@ TEST(OrthoCli, GroundControlTargetsLandWithinOneGroundSampleDistance) {
     EXPECT_LT(std::hypot(de, dn), r.gt[1]) << p["name"];
     EXPECT_GT(fix.contrast, 1.0) << p["name"];  // the checker, not the ground's weave
   }
+
+  // The report shows the orthomosaic and the NDVI map, north up on the
+  // same grid, with the GSD and the CRS stated.
+  ASSERT_EQ(ddhgs("report " + run.string(), &out), 0) << out;
+  const fs::path assets = run / "report" / "assets";
+  const std::string data = io::read_file(assets / "data.js");
+  char gsd_text[32];
+  std::snprintf(gsd_text, sizeof gsd_text, "%.6g m", r.gt[1]);
+  EXPECT_NE(data.find(std::string("ground sample distance of ") + gsd_text), std::string::npos);
+  EXPECT_NE(data.find("CRS EPSG:32630, WGS 84 / UTM zone 30N"), std::string::npos);
+  const torch::Tensor mosaic = io::read_image(assets / "ortho" / "reflectance.png").to(torch::kInt);
+  const torch::Tensor ndvi = io::read_image(assets / "ortho" / "ndvi.png").to(torch::kInt);
+  ASSERT_EQ(mosaic.size(0), r.height);
+  ASSERT_EQ(mosaic.size(1), r.width);
+  ASSERT_TRUE(ndvi.sizes() == mosaic.sizes());
+  auto grey = [&mosaic](double row, double col) {
+    return mosaic[int64_t(row)][int64_t(col)].sum().item<int>() / 3;
+  };
+  for (const json& p : synth["ground_control_points"]) {
+    const double col = (p["easting_m"].get<double>() - r.gt[0]) / r.gt[1];
+    const double row = (p["northing_m"].get<double>() - r.gt[3]) / r.gt[5];
+    // The target where its coordinates put it: north-west quarter white,
+    // north-east dark.
+    EXPECT_GT(grey(row - 2.5, col - 2.5), grey(row - 2.5, col + 2.5) + 60) << p["name"];
+  }
+  EXPECT_EQ(grey(0, 0), 128);  // nothing covers the corner: mid grey
+  // NDVI: the plant (at the world's origin) green, the ground around the
+  // targets not.
+  const json& origin = synth["georeference"]["world_origin_crs_m"];
+  const int64_t pc = int64_t((origin[0].get<double>() - r.gt[0]) / r.gt[1]);
+  const int64_t pr = int64_t((origin[1].get<double>() - r.gt[3]) / r.gt[5]);
+  const json& g1 = synth["ground_control_points"][0];
+  const int64_t gc = int64_t((g1["easting_m"].get<double>() - r.gt[0]) / r.gt[1]) + 10;
+  const int64_t gr = int64_t((g1["northing_m"].get<double>() - r.gt[3]) / r.gt[5]);
+  const int plant_green = (ndvi[pr][pc][1] - ndvi[pr][pc][0]).item<int>();
+  const int ground_green = (ndvi[gr][gc][1] - ndvi[gr][gc][0]).item<int>();
+  EXPECT_GT(plant_green, 60);
+  EXPECT_LT(ground_green, plant_green - 60);
 }
 
 // Georeferencing from noisy GPS: a survey of 200 captures (10 flight lines
@@ -319,6 +358,11 @@ TEST(OrthoCli, WithoutGpsThereIsNoGeoreferenceAndNoOrthomosaic) {
   EXPECT_NE(out.find((root / "run").string()), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(root / "run" / "renders"));
   EXPECT_NE(ddhgs("render " + (root / "run").string() + " --gsd 0.1", &out), 0);  // needs --ortho
+  // Its report has no orthomosaic section's pictures.
+  ASSERT_EQ(ddhgs("report " + (root / "run").string(), &out), 0) << out;
+  EXPECT_FALSE(fs::exists(root / "run" / "report" / "assets" / "ortho"));
+  EXPECT_NE(io::read_file(root / "run" / "report" / "assets" / "data.js").find("\"ortho\":null"),
+            std::string::npos);
   EXPECT_NE(ddhgs("render " + (root / "run").string() + " --ortho --orbit 4", &out), 0);
 }
 

@@ -147,6 +147,21 @@
     show();
   }
 
+  // A georeferenced run: its orthomosaic and NDVI map, with GSD and CRS.
+  function orthoSection() {
+    const o = R.ortho;
+    if (!o) return;
+    $("sec-ortho").hidden = false;
+    $("nav-ortho").hidden = false;
+    const grid = $("ortho-grid");
+    for (const f of o.files) {
+      grid.appendChild(
+        el("figure", {}, [el("img", { src: f.src, alt: f.title }), el("figcaption", { text: f.title })])
+      );
+    }
+    $("ortho-note").textContent = o.caption;
+  }
+
   // Band atlases decoded once into byte arrays: value of band b at (x, y).
   function decodeAtlas(uri, meta) {
     return new Promise((resolve, reject) => {
@@ -302,6 +317,7 @@
     curvesSection();
     spectralSection();
     figuresSection();
+    orthoSection();
     summarySection();
     splatSection();
     await viewerSection();
