@@ -9,6 +9,7 @@
 #include <fstream>
 
 #include "io/files/atomic_file.h"
+#include "reliability/cli_support.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -42,9 +43,7 @@ int ddhgs(const std::string& args, std::string* out) {
   return test::run_command(test::ddhgs_binary() + " " + args, out);
 }
 
-nlohmann::json read_json(const fs::path& p) {
-  return nlohmann::json::parse(io::read_file(p));
-}
+using test::read_json;
 
 TEST(DenoiserCli, TrainsResumesBitForBitEvaluatesAndRenders) {
   const fs::path runs = test::temp_dir("denoiser_cli_runs");

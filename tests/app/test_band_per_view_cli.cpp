@@ -12,6 +12,7 @@
 #include "io/files/atomic_file.h"
 #include "io/scene/scene.h"
 #include "io/transforms/transforms.h"
+#include "reliability/cli_support.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -25,9 +26,7 @@ int ddhgs(const std::string& args, std::string* out) {
   return test::run_command(test::ddhgs_binary() + " " + args, out);
 }
 
-json read_json(const fs::path& p) {
-  return json::parse(io::read_file(p));
-}
+using test::read_json;
 
 // `cubes` rewritten as bands/<view>_b<band>.npy (and clean/ likewise), one
 // frame per band per view at the view's pose, the split kept.

@@ -23,9 +23,7 @@ using json = nlohmann::json;
 
 using test::ddhgs;
 
-json read_json(const fs::path& p) {
-  return json::parse(io::read_file(p));
-}
+using test::read_json;
 
 // Capture 4 is held out (the middle of 8).
 const std::vector<double> kFactors = {0.85, 1.15, 0.9, 1.2, 1.05, 0.8, 1.1, 0.95};

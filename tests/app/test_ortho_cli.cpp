@@ -31,9 +31,7 @@ using json = nlohmann::json;
 
 using test::ddhgs;
 
-json read_json(const fs::path& p) {
-  return json::parse(io::read_file(p));
-}
+using test::read_json;
 
 // A GeoTIFF as GDAL reads it: gdalinfo's description and the pixels through
 // gdal_translate to a raw band-sequential float32 file.

@@ -15,6 +15,7 @@
 #include "core/similarity.h"
 #include "io/files/atomic_file.h"
 #include "io/scene/scene.h"
+#include "reliability/cli_support.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -26,9 +27,7 @@ int ddhgs(const std::string& args, std::string* out) {
   return test::run_command(test::ddhgs_binary() + " " + args, out);
 }
 
-json read_json(const fs::path& p) {
-  return json::parse(io::read_file(p));
-}
+using test::read_json;
 
 std::string env_or(const char* name, const std::string& fallback) {
   const char* v = std::getenv(name);

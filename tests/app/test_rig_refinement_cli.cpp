@@ -22,9 +22,7 @@ using json = nlohmann::json;
 
 using test::ddhgs;
 
-json read_json(const fs::path& p) {
-  return json::parse(io::read_file(p));
-}
+using test::read_json;
 
 TEST(RigRefinementCli, TrainingFindsTheTurnedCamerasAndResumesWithThem) {
   const fs::path root = test::temp_dir("rig_refinement_cli");

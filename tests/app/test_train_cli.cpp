@@ -9,6 +9,7 @@
 
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
+#include "reliability/cli_support.h"
 #include "support/test_support.h"
 
 namespace ddhgs {
@@ -42,9 +43,7 @@ int train(const std::string& args, std::string* out) {
   return test::run_command(test::ddhgs_binary() + " train " + args, out);
 }
 
-nlohmann::json read_json(const fs::path& p) {
-  return nlohmann::json::parse(io::read_file(p));
-}
+using test::read_json;
 
 // A copy of `run` taken back to its numbered checkpoint at `iteration`, as if
 // it had been interrupted there.

@@ -9,6 +9,8 @@
 #include <utility>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "io/files/atomic_file.h"
 #include "support/test_support.h"
 
@@ -17,6 +19,11 @@ namespace ddhgs::test {
 // Runs `ddhgs ARGS`; stdout and stderr together in *out.
 inline int ddhgs(const std::string& args, std::string* out) {
   return run_command(ddhgs_binary() + " " + args, out);
+}
+
+// A JSON file a command wrote, parsed.
+inline nlohmann::json read_json(const std::filesystem::path& path) {
+  return nlohmann::json::parse(io::read_file(path));
 }
 
 // Every file below dir with its contents, to show that nothing changed.
