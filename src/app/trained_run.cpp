@@ -138,8 +138,8 @@ TrainedRun open_trained_run(const fs::path& run_dir, const std::string& data_ove
   const fs::path denoiser = train::denoiser_path(paths);
   if (fs::exists(denoiser)) {
     run.denoiser = train::read_denoiser(denoiser);
-    core::require(run.denoiser->unet->options().bands == run.scene->bands(), denoiser,
-                  "the denoiser has " + std::to_string(run.denoiser->unet->options().bands) +
+    core::require(run.denoiser->bands() == run.scene->bands(), denoiser,
+                  "the denoiser has " + std::to_string(run.denoiser->bands()) +
                       " bands but the dataset loads " + std::to_string(run.scene->bands()));
     run.sampler = run.config.diffusion.sampler;
   }

@@ -196,8 +196,18 @@ torch::Tensor view_diffusion_loss(const Denoiser& denoiser, const torch::Tensor&
 torch::Tensor views_diffusion_loss(const Denoiser& denoiser, const std::vector<torch::Tensor>& gts,
                                    const std::vector<torch::Tensor>& renders, int64_t crop_px,
                                    at::Generator& generator, double min_snr_gamma) {
-  return views_diffusion_loss(as_predictor(denoiser), denoiser.schedule, gts, renders, crop_px,
-                              generator, min_snr_gamma);
+  if (!denoiser.subspace)
+    return views_diffusion_loss(as_predictor(denoiser), denoiser.schedule, gts, renders, crop_px,
+                                generator, min_snr_gamma);
+  std::vector<torch::Tensor> gt_coeffs, render_coeffs;
+  for (const torch::Tensor& gt : gts) gt_coeffs.push_back(denoiser.subspace->encode(gt));
+  for (const torch::Tensor& r : renders) render_coeffs.push_back(denoiser.subspace->encode(r));
+  return views_diffusion_loss(as_predictor(denoiser), denoiser.schedule, gt_coeffs, render_coeffs,
+                              crop_px, generator, min_snr_gamma);
+}
+
+int64_t Denoiser::bands() const {
+  return subspace ? subspace->bands() : unet->options().bands;
 }
 
 NoisePredictor identity_predictor(const NoiseSchedule& schedule) {
@@ -316,11 +326,16 @@ torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& sched
 torch::Tensor denoise_view(const Denoiser& denoiser, const torch::Tensor& render,
                            const SamplerOptions& options) {
   TORCH_CHECK(render.dim() == 3, "denoise_view: render must be [H, W, N], got ", render.sizes());
-  auto cond = render.permute({2, 0, 1}).unsqueeze(0).contiguous();
-  return sample(as_predictor(denoiser), denoiser.schedule, cond, options)
-      .squeeze(0)
-      .permute({1, 2, 0})
-      .contiguous();
+  auto run = [&](const torch::Tensor& image) {
+    auto cond = image.permute({2, 0, 1}).unsqueeze(0).contiguous();
+    return sample(as_predictor(denoiser), denoiser.schedule, cond, options)
+        .squeeze(0)
+        .permute({1, 2, 0})
+        .contiguous();
+  };
+  if (!denoiser.subspace) return run(render);
+  const torch::Tensor coeffs = denoiser.subspace->encode(render);
+  return denoiser.subspace->apply(render, coeffs, run(coeffs)).clamp(0.0, 1.0);
 }
 
 void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& key,
@@ -333,6 +348,12 @@ void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& 
                                    {"prediction", to_string(denoiser.prediction)}};
   archive.write(key + "_schedule_json", c10::IValue(schedule.dump()));
   save_unet(archive, key, denoiser.unet);
+  if (denoiser.subspace) {
+    archive.write(key + "_subspace_mean", denoiser.subspace->mean);
+    archive.write(key + "_subspace_basis", denoiser.subspace->basis);
+    archive.write(key + "_subspace_scale",
+                  torch::tensor(denoiser.subspace->scale, torch::kFloat64));
+  }
 }
 
 Denoiser load_denoiser(torch::serialize::InputArchive& archive, const std::string& key,
@@ -353,6 +374,22 @@ Denoiser load_denoiser(torch::serialize::InputArchive& archive, const std::strin
     throw core::Error(file, "denoiser noise schedule is malformed: " + core::message_of(e));
   }
   denoiser.unet = load_unet(archive, key, file);
+  torch::Tensor mean;
+  if (archive.try_read(key + "_subspace_mean", mean)) {
+    SpectralSubspace s;
+    s.mean = mean;
+    torch::Tensor scale;
+    core::require(archive.try_read(key + "_subspace_basis", s.basis) &&
+                      archive.try_read(key + "_subspace_scale", scale) && scale.numel() == 1,
+                  file, "denoiser '" + key + "' has a subspace mean but no basis or scale");
+    s.scale = scale.item<double>();
+    core::require(mean.dim() == 1 && s.basis.dim() == 2 && s.basis.size(0) == mean.size(0) &&
+                      s.basis.size(1) == denoiser.unet->options().bands && s.scale > 0 &&
+                      std::isfinite(s.scale),
+                  file,
+                  "denoiser '" + key + "' has a spectral subspace that does not fit its U-Net");
+    denoiser.subspace = s;
+  }
   return denoiser;
 }
 

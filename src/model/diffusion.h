@@ -12,9 +12,11 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "model/spectral_subspace.h"
 #include "model/unet.h"
 
 namespace ddhgs::model {
@@ -90,6 +92,14 @@ struct Denoiser {
   UNet unet{nullptr};
   NoiseSchedule schedule;
   Prediction prediction = Prediction::Eps;
+  // A prior's denoiser works in a scene's spectral subspace (the U-Net has
+  // subspace->channels() channels): the functions below taking a Denoiser
+  // encode its views and renders, and denoise_view applies the correction in
+  // the scene's bands. None: the U-Net sees the bands themselves.
+  std::optional<SpectralSubspace> subspace;
+
+  // The band count the denoiser takes: the subspace's, else the U-Net's.
+  int64_t bands() const;
 };
 
 // Predicted noise eps_theta(x_t, t | cond), all in model space. The U-Net is
@@ -192,7 +202,8 @@ torch::Tensor sample(const NoisePredictor& predictor, const NoiseSchedule& sched
 
 // The denoised view for a render, channels-last in and out, [H, W, N]; the
 // render goes in unclamped, as the condition did in training, and comes out
-// in [0, 1].
+// in [0, 1]. With a subspace the sampler runs on the render's coefficients
+// and their change is applied to the render.
 torch::Tensor denoise_view(const Denoiser& denoiser,
                            const torch::Tensor& render,  // [H, W, N]
                            const SamplerOptions& options);

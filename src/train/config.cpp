@@ -192,6 +192,8 @@ constexpr AddedKey kAddedKeys[] = {
     {"loss.exposure_prior", "0.01"},  // correction off
     {"optim.iterations_per_band_view", "0"},
     {"camera_refinement.rig_warmup_fraction", "0"},  // rig runs had no warm-up
+    {"diffusion.prior", "\"\""},
+    {"diffusion.prior_finetune_steps", "0"},
 };
 
 // The one section added whole since format_version 2 began.

@@ -119,6 +119,7 @@ constexpr Range kRanges[] = {
     {"diffusion.distill_weight", 0, kMaxWeight, false},
     {"diffusion.distill_every", 1, kMaxCount, false, true},
     {"diffusion.validation_every", 0, kMaxCount, false, true},
+    {"diffusion.prior_finetune_steps", 0, kMaxCount, false, true},
     {"densify.from_fraction", 0, 1, false},
     {"densify.until_fraction", 0, 1, false},
     {"densify.every", 0, kMaxCount, false, true},

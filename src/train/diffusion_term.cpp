@@ -50,6 +50,9 @@ DiffusionTerm::DiffusionTerm(const DiffusionTermOptions& options, uint64_t init_
   denoiser_->prediction = options_.prediction;
 }
 
+DiffusionTerm::DiffusionTerm(const DiffusionTermOptions& options, model::Denoiser denoiser)
+    : options_(options), denoiser_(std::make_shared<model::Denoiser>(std::move(denoiser))) {}
+
 LossTerm DiffusionTerm::loss_term() {
   return {"diffusion", options_.weight,
           [denoiser = denoiser_, options = options_](const LossInputs& in) {
@@ -89,6 +92,12 @@ FinetuneLosses finetune_losses(model::Denoiser& denoiser, const DiffusionTermOpt
   out.loss = model::views_diffusion_loss(denoiser, gts, conds, options.finetune_crop, generator,
                                          options.min_snr_gamma);
   torch::NoGradGuard no_grad;
+  // The identity in the space the denoiser works in.
+  if (denoiser.subspace)
+    for (size_t i = 0; i < gts.size(); ++i) {
+      gts[i] = denoiser.subspace->encode(gts[i]);
+      conds[i] = denoiser.subspace->encode(conds[i]);
+    }
   out.identity =
       model::views_diffusion_loss(model::identity_predictor(denoiser.schedule), denoiser.schedule,
                                   gts, conds, options.finetune_crop, same, options.min_snr_gamma);

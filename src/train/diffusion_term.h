@@ -94,8 +94,14 @@ struct DiffusionTermOptions {
   // helps views it did not learn from; the distillation then runs only if
   // it does.
   int64_t validation_every = 0;
+  // A denoiser prior file (train/denoiser_prior.h; empty: none). With one the
+  // stage starts from the prior in the scene's subspace instead of a new
+  // U-Net, is not trained jointly, and fine-tunes prior_finetune_steps steps
+  // (instead of finetune_steps) on the pairs above.
+  std::string prior;
+  int64_t prior_finetune_steps = 0;
 
-  bool enabled() const { return weight > 0; }
+  bool enabled() const { return weight > 0 || !prior.empty(); }
 };
 
 // Holds the denoiser being trained; the trainer registers unet() as a module
@@ -106,6 +112,8 @@ class DiffusionTerm {
   // so the term starts as a pure eps-prediction task and does not disturb the
   // Gaussians at its first step).
   DiffusionTerm(const DiffusionTermOptions& options, uint64_t init_seed);
+  // Starts from a trained denoiser (a prior's, with the scene's subspace).
+  DiffusionTerm(const DiffusionTermOptions& options, model::Denoiser denoiser);
 
   // "diffusion": zero (and no graph) before the warm-up ends; afterwards the
   // eps MSE on a crop, with t, eps and the crop drawn from LossInputs::seed.

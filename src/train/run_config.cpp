@@ -179,6 +179,8 @@ DiffusionTermOptions parse_diffusion(const json& d, double weight, uint64_t seed
   o.distill_weight = read<double>(d, s, "distill_weight", source);
   o.distill_every = read<int64_t>(d, s, "distill_every", source);
   o.validation_every = read<int64_t>(d, s, "validation_every", source);
+  o.prior = read<std::string>(d, s, "prior", source);
+  o.prior_finetune_steps = read<int64_t>(d, s, "prior_finetune_steps", source);
   // Each key's range was checked by validate_config (config_values.cpp); what
   // is left is the sampler against the schedule it samples.
   o.sampler.validate(o.schedule_steps, source + ": diffusion");

@@ -10,6 +10,7 @@
 #include "io/files/atomic_file.h"
 #include "io/scene/backdrop.h"
 #include "train/config.h"
+#include "train/denoiser_prior.h"
 #include "train/diffusion_stage.h"
 #include "train/init.h"
 #include "train/model_shape.h"
@@ -268,7 +269,7 @@ void Trainer::build_modules() {
         reference_train_.push_back(v);
     add_module("rig_refinement", rig_refinement_.ptr(), config_.camera_refinement.rig_rotation_lr);
   }
-  const DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());
+  DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());
   if (diffusion.enabled()) {
     // The denoiser sees every band of a view at once; a view that holds one
     // band has no such image.
@@ -277,8 +278,11 @@ void Trainer::build_modules() {
                         "is a band-per-view scene (each view holds some of the bands); the "
                         "diffusion stage needs every band of a view: train it with "
                         "loss.diffusion=0");
-    diffusion_ =
-        std::make_unique<DiffusionTerm>(diffusion, mix_seed(config_.seed, kDenoiserInitStream));
+    if (diffusion.prior.empty())
+      diffusion_ =
+          std::make_unique<DiffusionTerm>(diffusion, mix_seed(config_.seed, kDenoiserInitStream));
+    else
+      diffusion_ = prior_term(diffusion, *scene_);
     add_module("denoiser", diffusion_->denoiser().unet.ptr(), diffusion.lr);
     if (diffusion.joint) losses_.push_back(diffusion_->loss_term());
     StageHost& host = *this;
