@@ -69,6 +69,7 @@ fs::path curve_path(const fs::path& prior) {
 
 int run(PriorArgs& args) {
   const fs::path out = args.out, state = train::prior_state_path(out), curve = curve_path(out);
+  if (out.has_parent_path()) fs::create_directories(out.parent_path());
   if (args.force)
     for (const fs::path& p : {out, state, curve}) fs::remove(p);
   core::require(!fs::exists(out) || fs::exists(state), out,

@@ -14,6 +14,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "model/spectral_subspace.h"
@@ -89,6 +90,14 @@ std::string to_string(Prediction prediction);
 // was trained with and what its output means. Checkpoints store all three, so
 // eval cannot mix them.
 struct Denoiser {
+  Denoiser() = default;
+  Denoiser(UNet unet_, NoiseSchedule schedule_, Prediction prediction_ = Prediction::Eps,
+           std::optional<SpectralSubspace> subspace_ = std::nullopt)
+      : unet(std::move(unet_)),
+        schedule(std::move(schedule_)),
+        prediction(prediction_),
+        subspace(std::move(subspace_)) {}
+
   UNet unet{nullptr};
   NoiseSchedule schedule;
   Prediction prediction = Prediction::Eps;
