@@ -3,11 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
-#include <sstream>
 
 #include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
@@ -23,13 +21,6 @@ namespace fs = std::filesystem;
 
 nlohmann::json read_json(const fs::path& path) {
   return nlohmann::json::parse(io::read_file(path));
-}
-
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 // Per-band mean of a uint16 cube (value / 65535) that synth wrote.
@@ -223,13 +214,13 @@ TEST(SynthVariant, SameSeedSameBytesOtherSeedOtherScene) {
   for (const auto& entry : fs::recursive_directory_iterator(dir / "a")) {
     if (!entry.is_regular_file()) continue;
     const fs::path rel = fs::relative(entry.path(), dir / "a");
-    EXPECT_EQ(slurp(entry.path()), slurp(dir / "b" / rel)) << rel;
+    EXPECT_EQ(io::read_file(entry.path()), io::read_file(dir / "b" / rel)) << rel;
     ++compared;
   }
   EXPECT_GE(compared, 4 * 3 + 3);
-  EXPECT_NE(slurp(dir / "a/clean/r_000.npy"), slurp(dir / "c/clean/r_000.npy"));
+  EXPECT_NE(io::read_file(dir / "a/clean/r_000.npy"), io::read_file(dir / "c/clean/r_000.npy"));
   // The variant changes the plant and light, not only the framing.
-  EXPECT_NE(slurp(dir / "a/clean/r_000.npy"), slurp(dir / "plain/clean/r_000.npy"));
+  EXPECT_NE(io::read_file(dir / "a/clean/r_000.npy"), io::read_file(dir / "plain/clean/r_000.npy"));
 
   const nlohmann::json a = read_json(dir / "a/synth.json"), c = read_json(dir / "c/synth.json");
   ASSERT_TRUE(a.contains("variant"));
