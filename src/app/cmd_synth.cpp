@@ -8,6 +8,7 @@
 #include "core/log.h"
 #include "io/files/output_folder.h"
 #include "synth/generate.h"
+#include "synth/variant.h"
 
 namespace ddhgs::app {
 namespace cmd_synth {
@@ -20,11 +21,13 @@ struct SynthArgs {
   bool no_ground = false;
   bool noisy_edges = false;
   bool gcp_targets = false;
+  bool vary = false;
   std::string light_factors;  // comma-separated, one per capture
   std::string gps_origin;     // LAT,LON
 };
 
-// Copies each given flag onto the preset's configuration.
+// Copies each given flag onto the preset's configuration (with --vary, onto
+// its variant's framing).
 synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   synth::SynthConfig c = synth::preset_config(a.preset);
   auto set = [&](const char* name, auto& field, const auto& value) {
@@ -32,6 +35,11 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   };
   const auto& f = a.flags;
   set("--seed", c.seed, f.seed);
+  if (a.vary) {
+    c.vary = true;
+    // A rig preset is refused by validate; its framing is not a ring's.
+    if (!c.rig) synth::vary_framing(c);
+  }
   set("--width", c.width, f.width);
   set("--height", c.height, f.height);
   set("--bands", c.bands, f.bands);
@@ -144,6 +152,11 @@ Action setup(CLI::App& parent) {
                 "rig-nadir: print the ground control points on the ground as survey targets "
                 "(black and white 2 x 2 checkers, 10 ground pixels a side, centred on each "
                 "point); other pixels stay as they are");
+  cmd->add_flag("--vary", args->vary,
+                "A randomised variant of the preset drawn from --seed (plant shape, size and "
+                "leaf count, leaf, pot, soil, ground and backdrop spectra, light direction, level "
+                "and colour, backdrop or none, camera fill, field of view and rings; ranges in "
+                "docs/commands.md), recorded in synth.json's variant; other flags override it");
   cmd->add_flag("--no-ground", args->no_ground, "Leave out the ground disc");
   cmd->add_flag("--noisy-edges", args->noisy_edges, "Much noisier edge bands (ablations)");
   return [args, cmd] {

@@ -15,6 +15,7 @@
 #include "io/transforms/transforms.h"
 #include "synth/render.h"
 #include "synth/rig_scene.h"
+#include "synth/variant.h"
 
 namespace ddhgs::synth {
 
@@ -155,6 +156,9 @@ void validate(const SynthConfig& c) {
       "rig-nadir");
   core::require(c.gps_noise_m >= 0 && c.gps_noise_m <= 100,
                 "synth: expected 0 <= --gps-noise <= 100 (metres)");
+  core::require(!c.rig || !c.vary,
+                "synth: --vary is for the ring presets (demo, bayspec, surface-optics, "
+                "noisy-edges)");
   core::require(c.rig || c.gps_noise_m == 0, "synth: --gps-noise needs --preset rig or rig-nadir");
   core::require(c.rig || (c.rig_perturb_deg == 0 && c.rig_offset_cm == 0),
                 "synth: --rig-perturb-deg and --rig-offset-cm need --preset rig or rig-nadir");
@@ -179,7 +183,8 @@ std::string view_name(int view, int views) {
   return "r_" + std::string(digits - std::min(digits, number.size()), '0') + number;
 }
 
-nlohmann::json describe(const SynthConfig& c, const SpectralSetup& setup, const PlantScene& scene) {
+nlohmann::json describe(const SynthConfig& c, const SpectralSetup& setup, const PlantScene& scene,
+                        const SceneVariant& variant) {
   nlohmann::json j;
   j["generator"] = "ddhgs synth";
   j["preset"] = c.preset;
@@ -216,6 +221,7 @@ nlohmann::json describe(const SynthConfig& c, const SpectralSetup& setup, const 
       {"sun", setup.lighting.sun},
       {"ambient", setup.lighting.ambient},
       {"backdrop", setup.lighting.backdrop}};
+  if (c.vary) j["variant"] = describe_variant(variant);
   return j;
 }
 
@@ -228,11 +234,14 @@ SynthResult write_synthetic_scene(const SynthConfig& config, const fs::path& out
   SynthResult result;
   io::write_folder_atomically({out, io::OutputKind::Scene, force, {}}, [&](const fs::path& tmp) {
     for (const char* sub : {"hyperspectral", "clean", "images"}) fs::create_directories(tmp / sub);
-    PlantScene scene = PlantScene::build(config.seed, config.ground);
+    // The default variant is the presets' plant and light.
+    const SceneVariant variant = config.vary ? draw_variant(config.seed) : SceneVariant{};
+    PlantScene scene = PlantScene::build(config.seed, config.ground, variant.plant);
     NoiseModel noise;
     noise.scale = config.noise_scale;
     noise.edge_power = config.noisy_edges ? 2.0 : 1.0;
-    SpectralSetup setup = make_spectral_setup(scene, config.wavelengths_nm(), noise);
+    SpectralSetup setup =
+        make_spectral_setup(scene, config.wavelengths_nm(), noise, variant.lighting);
     auto cameras = turntable_rig(scene, rig_options(config));
 
     io::TransformsFile transforms;
@@ -282,7 +291,8 @@ SynthResult write_synthetic_scene(const SynthConfig& config, const fs::path& out
         torch::from_blob(spectra.data(), {count, int64_t(setup.bands())}, torch::kFloat32).clone();
     io::write_point_ply(tmp / "points.ply", cloud);
     io::write_transforms(tmp / "transforms.json", transforms);
-    io::write_file_atomically(tmp / "synth.json", describe(config, setup, scene).dump(2) + "\n");
+    io::write_file_atomically(tmp / "synth.json",
+                              describe(config, setup, scene, variant).dump(2) + "\n");
 
     result.views = int(cameras.size());
     result.points = int(count);

@@ -80,6 +80,10 @@ struct SynthConfig {
   // survey targets, black and white 2 x 2 checkers 10 of the flight's
   // ground pixels a side, centred on each point (NE and SW quarters black).
   bool gcp_targets = false;
+  // A randomised variant of the preset's plant and light, drawn from the
+  // seed (synth/variant.h: draw_variant); the framing's part, vary_framing,
+  // is applied to the fields above before flags override them.
+  bool vary = false;
 
   std::vector<double> wavelengths_nm() const;
 };

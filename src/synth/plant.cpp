@@ -172,10 +172,11 @@ double value_noise(const Vec3& p, uint64_t seed) {
   return y0 + (y1 - y0) * tz;
 }
 
-PlantScene PlantScene::build(uint64_t seed, bool ground) {
+PlantScene PlantScene::build(uint64_t seed, bool ground, const PlantStyle& style) {
   PlantScene scene;
   scene.seed = seed;
   scene.ground = ground;
+  scene.style = style;
   std::mt19937_64 rng(splitmix(seed));
   auto uniform = [&](double lo, double hi) {
     return std::uniform_real_distribution<double>(lo, hi)(rng);
@@ -183,8 +184,8 @@ PlantScene PlantScene::build(uint64_t seed, bool ground) {
   const Pot& pot = scene.pot;
 
   // Main stem: a gently leaning curve from the soil to the crown.
-  const double stem_base_z = pot.soil_height - 0.02, crown_z = uniform(1.05, 1.2);
-  const double lean_x = uniform(-0.08, 0.08), lean_y = uniform(-0.08, 0.08);
+  const double stem_base_z = pot.soil_height - 0.02, crown_z = uniform(1.05, 1.2) * style.height;
+  const double lean_x = uniform(-style.lean, style.lean), lean_y = uniform(-style.lean, style.lean);
   auto stem_point = [&](double t) {
     return Vec3{lean_x * t * t, lean_y * t * t, stem_base_z + t * (crown_z - stem_base_z)};
   };
@@ -194,7 +195,7 @@ PlantScene PlantScene::build(uint64_t seed, bool ground) {
     scene.stems.push_back({stem_point(t0), stem_point(t1), 0.016 - 0.007 * t0});
   }
 
-  const int count = 12 + int(uniform(0, 5));
+  const int count = style.min_leaves + int(uniform(0, style.max_leaves - style.min_leaves + 1));
   const double azimuth0 = uniform(0, 2 * M_PI);
   for (int i = 0; i < count; ++i) {
     double f = double(i) / (count - 1);  // 0 lowest .. 1 top
@@ -208,9 +209,9 @@ PlantScene PlantScene::build(uint64_t seed, bool ground) {
     Leaf leaf;
     leaf.index = i;
     leaf.base = base;
-    leaf.length = (0.5 - 0.22 * f) * uniform(0.85, 1.15);
-    leaf.width = leaf.length * uniform(0.45, 0.62);
-    leaf.droop = uniform(0.25, 0.5);
+    leaf.length = (0.5 - 0.22 * f) * uniform(0.85, 1.15) * style.size;
+    leaf.width = leaf.length * uniform(0.45, 0.62) * style.leaf_aspect;
+    leaf.droop = uniform(0.25, 0.5) * style.droop;
     leaf.cup = uniform(0.1, 0.35);
     double elevation = (2 + 38 * f + uniform(-8, 8)) * M_PI / 180;
     leaf.u = out * std::cos(elevation) + Vec3{0, 0, std::sin(elevation)};
@@ -226,10 +227,11 @@ PlantScene PlantScene::build(uint64_t seed, bool ground) {
     scene.leaves.push_back(leaf);
 
     LeafTraits traits;
-    traits.chlorophyll = uniform(0.75, 1.3);
-    traits.water = uniform(0.8, 1.2);
-    traits.nir_plateau = uniform(0.42, 0.56);
-    traits.senescence = i < 2 ? uniform(0.15, 0.45) : uniform(0.0, 0.08);
+    traits.chlorophyll = uniform(style.chlorophyll_lo, style.chlorophyll_hi);
+    traits.water = uniform(style.water_lo, style.water_hi);
+    traits.nir_plateau = uniform(style.nir_plateau_lo, style.nir_plateau_hi);
+    traits.senescence =
+        i < style.yellowed_leaves ? uniform(0.15, style.yellowed_senescence) : uniform(0.0, 0.08);
     scene.traits.push_back(traits);
   }
 
@@ -396,13 +398,22 @@ void PlantScene::shade(const Ray& ray, const Nearest& found, SurfaceHit* hit) co
 
 std::vector<std::function<double(double)>> PlantScene::material_spectra() const {
   std::vector<std::function<double(double)>> out(kLeafMaterials);
-  out[kBackground] = background_reflectance;
-  out[kMatLight] = [](double nm) { return mat_reflectance(nm, 0.0); };
-  out[kMatDark] = [](double nm) { return mat_reflectance(nm, 1.0); };
-  out[kPotLight] = [](double nm) { return terracotta_reflectance(nm, 0.0); };
-  out[kPotDark] = [](double nm) { return terracotta_reflectance(nm, 1.0); };
-  out[kSoilDry] = [](double nm) { return soil_reflectance(nm, 0.0); };
-  out[kSoilWet] = [](double nm) { return soil_reflectance(nm, 1.0); };
+  // Gain 1 and shift 0 leave every value as the function gives it.
+  auto tinted = [](const Tint& tint, double (*f)(double, double), double parameter) {
+    return [tint, f, parameter](double nm) {
+      return std::min(1.0, tint.gain * f(nm - tint.shift_nm, parameter));
+    };
+  };
+  const Tint backdrop = style.backdrop;
+  out[kBackground] = [backdrop](double nm) {
+    return std::min(1.0, backdrop.gain * background_reflectance(nm - backdrop.shift_nm));
+  };
+  out[kMatLight] = tinted(style.ground, mat_reflectance, 0.0);
+  out[kMatDark] = tinted(style.ground, mat_reflectance, 1.0);
+  out[kPotLight] = tinted(style.pot, terracotta_reflectance, 0.0);
+  out[kPotDark] = tinted(style.pot, terracotta_reflectance, 1.0);
+  out[kSoilDry] = tinted(style.soil, soil_reflectance, 0.0);
+  out[kSoilWet] = tinted(style.soil, soil_reflectance, 1.0);
   out[kStem] = [](double nm) { return leaf_reflectance(nm, LeafTraits{0.45, 1.0, 0.38, 0.15}); };
   for (const auto& t : traits) {
     out.push_back([t](double nm) { return leaf_reflectance(nm, t); });

@@ -63,6 +63,33 @@ struct SurfaceHit {
   float shininess = 1;  // Blinn-Phong exponent
 };
 
+// A material's reflectance as the plant's style tints it: gain x f(nm -
+// shift_nm), at most 1. The default leaves f unchanged.
+struct Tint {
+  double gain = 1;
+  double shift_nm = 0;
+};
+
+// What PlantScene::build draws its plant from. The defaults are the presets'
+// plant; `ddhgs synth --vary` draws a style per seed (synth/variant.h).
+struct PlantStyle {
+  int min_leaves = 12, max_leaves = 16;  // leaf count, uniform in [min, max]; min >= 2
+  double size = 1;                       // multiplies every leaf's length
+  double leaf_aspect = 1;                // multiplies every leaf's width / length ratio
+  double height = 1;                     // multiplies the crown's height above the ground
+  double droop = 1;                      // multiplies every leaf's droop
+  double lean = 0.08;                    // largest lean of the stem's top, scene units
+  // Leaf biochemistry (LeafTraits), each drawn uniformly in [lo, hi].
+  double chlorophyll_lo = 0.75, chlorophyll_hi = 1.3;
+  double water_lo = 0.8, water_hi = 1.2;
+  double nir_plateau_lo = 0.42, nir_plateau_hi = 0.56;
+  // The lowest leaves are yellowing: senescence uniform in [0.15,
+  // yellowed_senescence] (> 0.15); the others' in [0, 0.08].
+  int yellowed_leaves = 2;
+  double yellowed_senescence = 0.45;
+  Tint pot, soil, ground, backdrop;
+};
+
 // A survey target printed on the ground (z = 0): a 2 x 2 checker of
 // black and white squares around (x, y), half a side `half` (scene units);
 // the north-east and south-west quarters black.
@@ -72,8 +99,8 @@ struct GroundTarget {
 
 class PlantScene {
  public:
-  // Same seed, same plant. ground: add the textured ground disc.
-  static PlantScene build(uint64_t seed, bool ground);
+  // Same seed and style, same plant. ground: add the textured ground disc.
+  static PlantScene build(uint64_t seed, bool ground, const PlantStyle& style = {});
 
   // Nearest hit along the ray with t > 0; false for the background.
   bool intersect(const Ray& ray, SurfaceHit* hit) const;
@@ -103,6 +130,7 @@ class PlantScene {
   // Printed on the ground disc (none by default).
   std::vector<GroundTarget> targets;
   uint64_t seed = 0;
+  PlantStyle style;
 
  private:
   // The nearest hit's distance, kind, part and plant copy (ground: copy 0).

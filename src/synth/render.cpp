@@ -28,7 +28,8 @@ SpectralSetup make_spectral_setup(const PlantScene& scene,
   double brightest = 1e-12;
   for (int b = 0; b < n; ++b) {
     setup.response.push_back(sensor_response(wavelengths_nm[b]));
-    lamp_response[b] = lamp_power(wavelengths_nm[b]) * setup.response[b];
+    lamp_response[b] =
+        lamp_power(wavelengths_nm[b], lighting.lamp_temperature_k) * setup.response[b];
     // The scene's own materials set the gain; the targets' paint does
     // not, so printing targets changes no other pixel.
     for (size_t m = 0; m < size_t(scene.scene_materials()); ++m) {
@@ -36,7 +37,8 @@ SpectralSetup make_spectral_setup(const PlantScene& scene,
       brightest = std::max(brightest, setup.reflectance[m * n + b] * light * lamp_response[b]);
     }
   }
-  for (int b = 0; b < n; ++b) setup.band_gain.push_back(float(0.85 * lamp_response[b] / brightest));
+  for (int b = 0; b < n; ++b)
+    setup.band_gain.push_back(float(0.85 * lighting.exposure * lamp_response[b] / brightest));
   return setup;
 }
 

@@ -18,7 +18,10 @@ struct Lighting {
   core::Vec3 to_light{0.4, -0.5, 0.9};  // direction towards the light (normalised on use)
   double sun = 0.9;
   double ambient = 0.25;
-  double backdrop = 0.7;  // radiance factor of the background
+  double backdrop = 0.7;             // radiance factor of the background (0: none, black)
+  double lamp_temperature_k = 3200;  // the lamp's colour (lamp_power): the light's spectral tilt
+  // The brightest diffuse material sits at 0.85 x exposure of full scale.
+  double exposure = 1;
 };
 
 // Everything that turns a hit into N band values, tabulated on the band grid.
@@ -33,7 +36,7 @@ struct SpectralSetup {
 };
 
 // Tabulates the scene's materials on the grid and picks the gain that puts the
-// brightest diffuse material at about 0.85 of full scale.
+// brightest diffuse material at about 0.85 x lighting.exposure of full scale.
 SpectralSetup make_spectral_setup(const PlantScene& scene,
                                   const std::vector<double>& wavelengths_nm,
                                   const NoiseModel& noise, const Lighting& lighting = {});
