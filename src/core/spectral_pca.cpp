@@ -68,9 +68,18 @@ SpectralPca spectral_pca(const torch::Tensor& spectra) {
 torch::Tensor band_noise_sigma(const torch::Tensor& image) {
   require(image.dim() == 3 && image.size(1) >= 2, "band_noise_sigma: expected an image [H, W, N]");
   const torch::Tensor x = image.to(torch::kFloat64);
-  const torch::Tensor diff =
-      (x.slice(1, 1, x.size(1)) - x.slice(1, 0, x.size(1) - 1)).abs().reshape({-1, x.size(2)});
-  return std::get<0>(diff.median(0)) / (0.6745 * std::sqrt(2.0));
+  const torch::Tensor right = x.slice(1, 1, x.size(1)).reshape({-1, x.size(2)});
+  const torch::Tensor left = x.slice(1, 0, x.size(1) - 1).reshape({-1, x.size(2)});
+  const torch::Tensor diff = (right - left).abs();
+  // Two black neighbours (a backdrop masked to 0, noise clipped there) show
+  // no noise: on a view that is mostly backdrop they would make the median 0.
+  const torch::Tensor live = (right != 0) | (left != 0);
+  torch::Tensor sigma = torch::zeros({x.size(2)}, torch::kFloat64);
+  for (int64_t n = 0; n < x.size(2); ++n) {
+    const torch::Tensor d = diff.select(1, n).masked_select(live.select(1, n));
+    if (d.numel() > 0) sigma[n] = std::get<0>(d.median(0)) / (0.6745 * std::sqrt(2.0));
+  }
+  return sigma;
 }
 
 int64_t whitened_signal_rank(const torch::Tensor& spectra, const torch::Tensor& noise_sigma) {

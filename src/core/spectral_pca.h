@@ -39,7 +39,8 @@ SpectralPca spectral_pca(const torch::Tensor& spectra);
 
 // Per-band noise level of an image [H, W, N] (W >= 2): the median absolute
 // difference of horizontally adjacent pixels over 0.6745 sqrt(2), the
-// standard deviation of white noise, robust to the image's edges. [N] float64.
+// standard deviation of white noise, robust to the image's edges; pairs of
+// two samples exactly 0 (a black backdrop) are left out. [N] float64.
 torch::Tensor band_noise_sigma(const torch::Tensor& image);
 
 // The signal's rank however uneven the noise is across bands: the spectra

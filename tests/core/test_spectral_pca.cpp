@@ -64,6 +64,17 @@ TEST(SpectralPca, BandNoiseSigmaMeasuresWhiteNoise) {
   EXPECT_TRUE(torch::allclose(measured, sigma, 0.05, 0)) << measured;
 }
 
+// A view mostly of black backdrop (noise clipped at 0 there): the level is
+// the lit part's, not the median of the black pairs' zero differences.
+TEST(SpectralPca, BandNoiseSigmaLooksPastABlackBackdrop) {
+  torch::manual_seed(6);
+  torch::Tensor image = torch::zeros({200, 200, 2}, torch::kFloat64);
+  const torch::Tensor sigma = torch::tensor({0.01, 0.03}, torch::kFloat64);
+  image.slice(1, 150, 200) = 0.5 + torch::randn({200, 50, 2}, torch::kFloat64) * sigma;
+  const torch::Tensor measured = core::band_noise_sigma(image);
+  EXPECT_TRUE(torch::allclose(measured, sigma, 0.08, 0)) << measured;
+}
+
 // Noise 30 times stronger in a tenth of the bands (a sensor's weak edges):
 // the unwhitened floor rule counts those bands' noise as signal, the
 // whitened rank finds the 3 signal components.
