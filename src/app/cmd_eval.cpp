@@ -18,6 +18,7 @@
 #include "io/files/folder_lock.h"
 #include "io/files/output_folder.h"
 #include "io/scene/backdrop.h"
+#include "train/denoiser_prior.h"
 
 namespace ddhgs::app {
 namespace cmd_eval {
@@ -28,6 +29,7 @@ struct EvalArgs {
   std::string split = "test";
   int fps_repeats = 5;
   std::string data;
+  std::string prior;
   // One step from s = 0.1 measured best on our scenes (docs/benchmarks.md).
   std::vector<int64_t> denoise_steps = {1, 10};
   bool ddpm = false, no_denoise = false;
@@ -68,6 +70,10 @@ Action setup(CLI::App& parent) {
       ->check(within(1, 1000000))
       ->capture_default_str();
   add_sampler_flags(cmd, args->sampler);
+  cmd->add_option("--prior", args->prior,
+                  "Denoise with this denoiser prior (ddhgs prior) in the run's spectral subspace, "
+                  "fitted to its training views, instead of the run's own denoiser; the denoised "
+                  "files are then the prior's");
   cmd->add_flag("--no-denoise", args->no_denoise, "Evaluate the raw render only");
   cmd->add_flag("--held-out-bands", args->held_out_bands,
                 "For a run trained on every k-th band (data.band_step k): also render the "
@@ -77,6 +83,12 @@ Action setup(CLI::App& parent) {
   return [args, denoise_steps_option] {
     TrainedRun run = open_trained_run(args->run, args->data);
     io::FolderLock lock(run.root, "eval");
+    if (!args->prior.empty()) {
+      train::DiffusionTermOptions options = run.config.diffusion;
+      options.prior = args->prior;
+      run.denoiser = train::prior_term(options, *run.scene)->denoiser();
+      run.sampler = run.config.diffusion.sampler;
+    }
     // The sampler settings are checked before the (long) raw evaluation.
     std::vector<eval::DenoiseSetting> settings;
     if (run.denoiser && !args->no_denoise) {

@@ -81,6 +81,22 @@ TEST(PriorCli, TrainsResumesAndServesARun) {
   EXPECT_FALSE(denoised.empty());
   EXPECT_NE(out.find("ddim1"), std::string::npos) << out;
 
+  // A run trained without it, evaluated with the prior: the same raw metrics,
+  // denoised ones from the prior.
+  const fs::path plain = root / "plain";
+  ASSERT_EQ(
+      ddhgs("train " + scene.string() + " --preset demo --iterations 30 --out " + plain.string(),
+            &out),
+      0)
+      << out;
+  ASSERT_EQ(ddhgs("eval " + plain.string(), &out), 0) << out;
+  EXPECT_FALSE(fs::exists(plain / "eval" / "denoised.json"));
+  const json raw = test::read_json(plain / "eval" / "metrics.json");
+  ASSERT_EQ(ddhgs("eval " + plain.string() + " --prior " + prior.string(), &out), 0) << out;
+  EXPECT_NE(out.find("the denoiser prior"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(plain / "eval" / "denoised.json"));
+  EXPECT_EQ(test::read_json(plain / "eval" / "metrics.json")["psnr"], raw["psnr"]);
+
   // Bad input: one line naming the file, nothing left behind.
   EXPECT_NE(ddhgs("prior " + root.string() + " --out " + (root / "x.pt").string(), &out), 0);
   EXPECT_NE(out.find("manifest.json"), std::string::npos) << out;
