@@ -30,6 +30,7 @@ struct PriorArgs {
   int64_t base_channels = 32;
   int64_t check_every = 500;
   bool force = false;
+  std::string objective = "restoration";
   std::string command_line;
 };
 
@@ -94,6 +95,7 @@ int run(PriorArgs& args) {
   }
   nlohmann::json info = {{"command", args.command_line},
                          {"corpus", corpus.description},
+                         {"objective", train::to_string(training.objective)},
                          {"batch", training.batch},
                          {"crop", training.crop},
                          {"lr", training.lr},
@@ -133,7 +135,7 @@ int run(PriorArgs& args) {
     if (trainer.step() % args.check_every == 0 || trainer.step() == training.steps) checkpoint();
   }
   if (since > 0) checkpoint();
-  bar.finish();
+  if (trainer.step() >= training.steps) bar.finish();  // a stopped bar stays where it stopped
   core::log_info("prior: " + out.string() + " at step " + std::to_string(trainer.step()) +
                  (trainer.step() < training.steps ? " (stopped; rerun to go on)" : ""));
   return train::stop_requested() ? 130 : 0;
@@ -148,6 +150,12 @@ Action setup(CLI::App& parent) {
   cmd->add_option("corpus", args->corpus, "The corpus folder (holding manifest.json)")->required();
   cmd->add_option("--out", args->out, "The prior file (beside it: .state.pt, .curve.csv)")
       ->required();
+  cmd->add_option("--objective", args->objective,
+                  "restoration: the render noised up to the sampler's start step, the clean "
+                  "view predicted in one step (what the sampler asks at inference); diffusion: "
+                  "the paper's loss over every step")
+      ->check(CLI::IsMember({"restoration", "diffusion"}))
+      ->capture_default_str();
   cmd->add_option("--steps", args->training.steps, "Total optimiser steps")
       ->default_val(20000)
       ->check(within(1, 1e9));
@@ -177,10 +185,11 @@ Action setup(CLI::App& parent) {
     // The settings that decide the weights (the corpus and the output as given).
     std::ostringstream line;
     const train::PriorTrainingOptions& t = args->training;
-    line << "ddhgs prior " << args->corpus << " --out " << args->out << " --steps " << t.steps
-         << " --batch " << t.batch << " --crop " << t.crop << " --lr " << core::format_g(t.lr)
-         << " --channels " << args->channels << " --base-channels " << args->base_channels
-         << " --seed " << t.seed;
+    args->training.objective = train::parse_prior_objective(args->objective, "--objective");
+    line << "ddhgs prior " << args->corpus << " --out " << args->out << " --objective "
+         << args->objective << " --steps " << t.steps << " --batch " << t.batch << " --crop "
+         << t.crop << " --lr " << core::format_g(t.lr) << " --channels " << args->channels
+         << " --base-channels " << args->base_channels << " --seed " << t.seed;
     args->command_line = line.str();
     return run(*args);
   };

@@ -187,6 +187,25 @@ torch::Tensor diffusion_loss(const NoisePredictor& predictor, const NoiseSchedul
   return (error.flatten(1).mean(1) * weight).mean();
 }
 
+torch::Tensor restoration_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                               const torch::Tensor& x_gt, const torch::Tensor& cond, int64_t t_max,
+                               at::Generator& generator) {
+  TORCH_CHECK(cond.dim() == 4 && x_gt.sizes() == cond.sizes(), "restoration_loss: x_gt ",
+              x_gt.sizes(), " must match cond ", cond.sizes());
+  TORCH_CHECK(t_max >= 0 && t_max < schedule.steps, "restoration_loss: t_max ", t_max,
+              " outside the schedule's ", schedule.steps, " steps");
+  auto t = torch::randint(0, t_max + 1, {x_gt.size(0)}, generator,
+                          torch::TensorOptions().dtype(torch::kLong));
+  auto eps = torch::randn(cond.sizes(), generator, cond.options());
+  const torch::Tensor c = to_model_space(cond);
+  auto x_t = q_sample(schedule, c.detach(), t, eps);
+  const torch::Tensor eps_hat = predictor(x_t, c, t);
+  const torch::Tensor x0 =
+      (x_t - per_sample(schedule.sqrt_one_minus_alphas_cumprod, t, x_t) * eps_hat) /
+      per_sample(schedule.sqrt_alphas_cumprod, t, x_t);
+  return (x0 - to_model_space(x_gt)).square().mean();
+}
+
 torch::Tensor view_diffusion_loss(const Denoiser& denoiser, const torch::Tensor& gt,
                                   const torch::Tensor& render, int64_t crop_px,
                                   at::Generator& generator, double min_snr_gamma) {

@@ -132,6 +132,18 @@ torch::Tensor diffusion_loss(const NoisePredictor& predictor, const NoiseSchedul
                              const torch::Tensor& cond,  // [B, N, H, W]
                              at::Generator& generator, double min_snr_gamma = 0.0);
 
+// The task a sampler started from the condition sets (start_strength < 1,
+// one DDIM step): the condition noised to a step t uniform in [0, t_max],
+// the clean image predicted from it in one step, and the mean squared error
+// of that prediction against x_gt, in model space. diffusion_loss noises
+// the ground truth, which no sampler has at inference; a denoiser prior
+// trained on this learns what it is asked (Difix3D+ trains its single-step
+// model so). x_gt and cond in [0, 1]; t and eps drawn from `generator`.
+torch::Tensor restoration_loss(const NoisePredictor& predictor, const NoiseSchedule& schedule,
+                               const torch::Tensor& x_gt,  // [B, N, H, W]
+                               const torch::Tensor& cond,  // [B, N, H, W]
+                               int64_t t_max, at::Generator& generator);
+
 // The same on one view, channels-last as the renderer produces it, on one
 // random crop_px x crop_px window (the whole view if it is smaller) shared by
 // both images; crop_px <= 0 uses the whole view.

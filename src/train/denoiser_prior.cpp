@@ -46,6 +46,16 @@ std::pair<torch::Tensor, torch::Tensor> augmented_crop(const PriorPair& pair, in
 
 }  // namespace
 
+PriorObjective parse_prior_objective(const std::string& name, const std::string& where) {
+  if (name == "restoration") return PriorObjective::Restoration;
+  if (name == "diffusion") return PriorObjective::Diffusion;
+  throw core::Error(where, "objective '" + name + "' is neither restoration nor diffusion");
+}
+
+std::string to_string(PriorObjective objective) {
+  return objective == PriorObjective::Restoration ? "restoration" : "diffusion";
+}
+
 model::SpectralSubspace fit_scene_subspace(const io::Scene& scene, int64_t channels) {
   core::require(!scene.train.empty(), scene.root, "has no training views to fit a subspace to");
   core::require(!scene.band_per_view(), scene.root,
@@ -164,16 +174,21 @@ std::pair<double, double> PriorTraining::train_step() {
   at::Generator same = generator.clone();
   for (auto& group : adam_->param_groups())
     static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr_at(step_));
+  const int64_t t_max =
+      model::start_step(denoiser_.schedule.steps, options_.sampler.start_strength);
+  auto loss_of = [&](const model::NoisePredictor& predictor, at::Generator& draws) {
+    return options_.objective == PriorObjective::Restoration
+               ? model::restoration_loss(predictor, denoiser_.schedule, truth, cond, t_max, draws)
+               : model::diffusion_loss(predictor, denoiser_.schedule, truth, cond, draws,
+                                       options_.min_snr_gamma);
+  };
   adam_->zero_grad();
-  torch::Tensor loss = model::diffusion_loss(model::as_predictor(denoiser_), denoiser_.schedule,
-                                             truth, cond, generator, options_.min_snr_gamma);
+  torch::Tensor loss = loss_of(model::as_predictor(denoiser_), generator);
   loss.backward();
   adam_->step();
   ++step_;
   torch::NoGradGuard no_grad;
-  const torch::Tensor identity =
-      model::diffusion_loss(model::identity_predictor(denoiser_.schedule), denoiser_.schedule,
-                            truth, cond, same, options_.min_snr_gamma);
+  const torch::Tensor identity = loss_of(model::identity_predictor(denoiser_.schedule), same);
   return {loss.item<double>(), identity.item<double>()};
 }
 

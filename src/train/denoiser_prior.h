@@ -24,6 +24,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -64,15 +65,24 @@ constexpr int64_t kSubspacePixels = 200000;
 // prior file when it is missing or not a prior.
 std::unique_ptr<DiffusionTerm> prior_term(DiffusionTermOptions options, const io::Scene& scene);
 
+// What the prior learns: restoration (model::restoration_loss up to the
+// sampler's start step: the one-step task the sampler sets at inference) or
+// diffusion (model::diffusion_loss, the paper's, over every step).
+enum class PriorObjective { Restoration, Diffusion };
+// "restoration" | "diffusion"; core::Error naming `where` otherwise.
+PriorObjective parse_prior_objective(const std::string& name, const std::string& where);
+std::string to_string(PriorObjective objective);
+
 struct PriorTrainingOptions {
+  PriorObjective objective = PriorObjective::Restoration;
   int64_t steps = 20000;
   int64_t batch = 8;
   int64_t crop = 64;  // px, square; bounded by the smallest pair
   double lr = 2e-4;   // constant, then cosine to 0 over the last decay_fraction
   double decay_fraction = 0.1;
-  double min_snr_gamma = 5;
+  double min_snr_gamma = 5;  // diffusion only
   uint64_t seed = 0;
-  model::SamplerOptions sampler;  // for the checks
+  model::SamplerOptions sampler;  // for the checks; restoration trains up to its start step
 };
 
 // The prior file: the denoiser (U-Net, schedule, prediction; no subspace:

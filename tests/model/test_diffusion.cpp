@@ -307,6 +307,31 @@ TEST(DiffusionLoss, ZeroForTheExactPredictorAndOneForZeroNoise) {
   EXPECT_NEAR(model::diffusion_loss(zero, s, big, big, generator).item<double>(), 1.0, 0.02);
 }
 
+// The restoration loss noises the condition, not the truth: a predictor that
+// returns the condition's own noise (x0 = cond) scores the squared distance
+// of condition and truth in model space, 4 (cond - gt)^2, at any step; one
+// whose implied x0 is the truth scores 0; and the steps stay within t_max.
+TEST(DiffusionLoss, RestorationLossMeasuresTheOneStepPredictionFromTheNoisedCondition) {
+  model::NoiseSchedule s;
+  torch::manual_seed(14);
+  const auto gt = torch::rand({3, 2, 5, 5}), cond = torch::rand({3, 2, 5, 5});
+  auto generator = at::make_generator<at::CPUGeneratorImpl>(6);
+  const double identity =
+      model::restoration_loss(model::identity_predictor(s), s, gt, cond, 99, generator)
+          .item<double>();
+  EXPECT_NEAR(identity, (4 * (cond - gt).square()).mean().item<double>(), 1e-4);
+  int64_t largest_t = -1;
+  auto knows_truth = [&](const torch::Tensor& x_t, const torch::Tensor&, const torch::Tensor& t) {
+    largest_t = std::max(largest_t, t.max().item<int64_t>());
+    auto abar = abar_of(s, t, x_t);
+    return (x_t - abar.sqrt() * (gt * 2 - 1)) / (1 - abar).sqrt();
+  };
+  for (int i = 0; i < 20; ++i)
+    EXPECT_LT(model::restoration_loss(knows_truth, s, gt, cond, 9, generator).item<double>(), 1e-8);
+  EXPECT_LE(largest_t, 9);
+  EXPECT_GE(largest_t, 5);  // 60 draws in [0, 9]
+}
+
 // With one step (t = 0 always) SNR = (1 - beta) / beta = 4 for beta = 0.2, so
 // Min-SNR weighting scales the loss by min(4, gamma) / 4 on the same draws.
 TEST(DiffusionLoss, MinSnrWeightScalesByGammaOverSnr) {

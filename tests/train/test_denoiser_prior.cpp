@@ -71,40 +71,46 @@ TEST(DenoiserPrior, ResumedTrainingEndsWhereOneRunEnds) {
 
 // A constant lift learned on some pairs is taken off views of a scene the
 // training never saw, through that scene's own subspace.
+// (Both objectives.)
 TEST(DenoiserPrior, LearnsACorrectionThatCarriesToUnseenViews) {
-  train::PriorTrainingOptions o = small_options();
-  o.steps = 150;
-  o.batch = 4;
-  o.decay_fraction = 0.2;
-  train::PriorTraining training(tiny_prior(2, 3), o, lifted_pairs(6, 2, 2));
+  for (const std::string objective : {"restoration", "diffusion"}) {
+    SCOPED_TRACE(objective);
+    train::PriorTrainingOptions o = small_options();
+    o.objective = train::parse_prior_objective(objective, "test");
+    o.steps = 150;
+    o.batch = 4;
+    o.decay_fraction = 0.2;
+    train::PriorTraining training(tiny_prior(2, 3), o, lifted_pairs(6, 2, 2));
 
-  // An unseen 5-band scene: spectra on a 2-D plane; the render is the truth
-  // moved by +0.08 x scale along each of the plane's axes (a lift of 0.08 in
-  // both coefficients).
-  torch::manual_seed(4);
-  const auto axes = torch::tensor({{1., 1., 1., 1., 1.}, {-1., -1., 0., 1., 1.}});
-  const auto unit = axes / axes.norm(2, 1, true);  // [2, 5] orthonormal rows
-  const auto mean = torch::full({5}, 0.4);
-  auto coeffs = (torch::rand({24, 24, 2}) - 0.5) * 0.3;
-  const auto truth = mean + torch::matmul(coeffs, unit);
-  const model::SpectralSubspace s =
-      model::fit_spectral_subspace(truth.reshape({-1, 5}).to(torch::kFloat64), 2);
-  const auto lift = torch::matmul(torch::full({2}, 0.08f * float(s.scale)), s.basis.t());
-  const std::vector<train::PriorCheckView> unseen = {{truth + lift, truth, s}};
+    // An unseen 5-band scene: spectra on a 2-D plane; the render is the truth
+    // moved by +0.08 x scale along each of the plane's axes (a lift of 0.08 in
+    // both coefficients).
+    torch::manual_seed(4);
+    const auto axes = torch::tensor({{1., 1., 1., 1., 1.}, {-1., -1., 0., 1., 1.}});
+    const auto unit = axes / axes.norm(2, 1, true);  // [2, 5] orthonormal rows
+    const auto mean = torch::full({5}, 0.4);
+    auto coeffs = (torch::rand({24, 24, 2}) - 0.5) * 0.3;
+    const auto truth = mean + torch::matmul(coeffs, unit);
+    const model::SpectralSubspace s =
+        model::fit_spectral_subspace(truth.reshape({-1, 5}).to(torch::kFloat64), 2);
+    const auto lift = torch::matmul(torch::full({2}, 0.08f * float(s.scale)), s.basis.t());
+    const std::vector<train::PriorCheckView> unseen = {{truth + lift, truth, s}};
 
-  const auto [raw_before, denoised_before] = training.check(unseen);
-  double loss = 0, identity = 0;
-  for (int i = 0; i < o.steps; ++i) {
-    const auto [l, id] = training.train_step();
-    if (i >= o.steps - 30) loss += l, identity += id;
+    const auto [raw_before, denoised_before] = training.check(unseen);
+    double loss = 0, identity = 0;
+    for (int i = 0; i < o.steps; ++i) {
+      const auto [l, id] = training.train_step();
+      if (i >= o.steps - 30) loss += l, identity += id;
+    }
+    const auto [raw, denoised] = training.check(unseen);
+    std::printf("loss %.5f vs identity %.5f; unseen view %.2f dB raw, %.2f before, %.2f after\n",
+                loss / 30, identity / 30, raw, denoised_before, denoised);
+    EXPECT_NEAR(raw, raw_before, 1e-9);
+    EXPECT_NEAR(denoised_before, raw, 0.05);  // untrained: the render back
+    EXPECT_LT(loss, 0.5 * identity);
+    EXPECT_GT(denoised, raw + 3.0);
   }
-  const auto [raw, denoised] = training.check(unseen);
-  std::printf("loss %.5f vs identity %.5f; unseen view %.2f dB raw, %.2f before, %.2f after\n",
-              loss / 30, identity / 30, raw, denoised_before, denoised);
-  EXPECT_NEAR(raw, raw_before, 1e-9);
-  EXPECT_NEAR(denoised_before, raw, 0.05);  // untrained: the render back
-  EXPECT_LT(loss, 0.5 * identity);
-  EXPECT_GT(denoised, raw + 3.0);
+  EXPECT_THROW(train::parse_prior_objective("regression", "--objective"), core::Error);
 }
 
 TEST(DenoiserPrior, TheFileKeepsTheNetworkAndRefusesOtherFiles) {
