@@ -194,6 +194,8 @@ constexpr AddedKey kAddedKeys[] = {
     {"camera_refinement.rig_warmup_fraction", "0"},  // rig runs had no warm-up
     {"diffusion.prior", "\"\""},
     {"diffusion.prior_finetune_steps", "0"},
+    {"camera_refinement.rig_align_fraction", "0"},  // rig runs had no alignment phase
+    {"camera_refinement.rig_pivot", "false"},       // turns about the camera centre
 };
 
 // The one section added whole since format_version 2 began.

@@ -93,6 +93,7 @@ constexpr Range kRanges[] = {
     {"camera_refinement.rig_offset_lr", 0, kMaxRate, false},
     {"camera_refinement.rig_pull", 0, kMaxWeight, false},
     {"camera_refinement.rig_warmup_fraction", 0, 1, false},
+    {"camera_refinement.rig_align_fraction", 0, 1, false},
     {"diffusion.warmup", 0, kMaxCount, false, true},
     {"diffusion.crop", 0, 65536, false, true},
     {"diffusion.lr", 0, kMaxRate, true},

@@ -14,7 +14,16 @@
 // R_W and the band camera's factory turn T) and D the rotation r,
 //   x' = c + R(M r) (x - c) - M D o,   q' = q(M r) * q,
 // which the view's recorded camera sees as the corrected camera sees x.
-// pull() is the L2 pull towards the factory values (zero corrections);
+// With a pivot depth d > 0 the learned offset o' is measured from the
+// band camera turned about the pivot p = (0, 0, d) in the reference
+// camera's axes, the point it looks at, rather than about its centre:
+//   o = o' + (I - D^T) p,
+// so a turn r alone leaves the scene at depth d where it was in the image.
+// A turn about the centre and a sideways move of d times it shift the image
+// alike at depth d (only the scene's depth spread tells them apart); in
+// these coordinates the image's shift is o' and the part the images barely
+// see is r alone, which Adam's per-parameter steps then move at full rate.
+// pull() is the L2 pull towards the factory values (zero turn and offset);
 // held-out views are measured through io::corrected_band_camera.
 #pragma once
 #include <torch/nn/module.h>
@@ -35,8 +44,9 @@ namespace ddhgs::train {
 class RigRefinementImpl : public torch::nn::Module {
  public:
   // scene: a rig scene (Scene::rig, views with rig cameras); core::Error
-  // naming its folder otherwise.
-  explicit RigRefinementImpl(const io::Scene& scene);
+  // naming its folder otherwise. pivot_depth (scene units): the pivot's
+  // distance in front of the camera; 0 turns about the camera's centre.
+  explicit RigRefinementImpl(const io::Scene& scene, double pivot_depth = 0);
 
   // means: [G, 3], quats: [G, 4] (w, x, y, z) moved for view v seen by
   // camera (its recorded camera, or a crop of it); unchanged for the
@@ -46,9 +56,11 @@ class RigRefinementImpl : public torch::nn::Module {
                                                const torch::Tensor& quats, double extent) const;
   // view v's recorded camera as its corrected band camera.
   core::Camera corrected(int view, const core::Camera& camera, double extent) const;
+  // The offset o of each camera (scene extents, [C, 3]).
+  torch::Tensor offsets(double extent) const;
   // weight x (|r|^2 + |o|^2) summed over the cameras (r in radians, o in
   // scene extents): [].
-  torch::Tensor pull(double weight) const;
+  torch::Tensor pull(double weight, double extent) const;
   // The corrections by rig camera index, offsets in scene units.
   std::map<int, io::RigCorrection> corrections(double extent) const;
   // Writes them to `file` (io::write_rig_corrections, which eval, render
@@ -58,13 +70,24 @@ class RigRefinementImpl : public torch::nn::Module {
                         const std::filesystem::path& file) const;
 
   torch::Tensor rotation;  // [C, 3] radians, reference camera's axes
-  torch::Tensor offset;    // [C, 3] scene extents, reference camera's axes
+  torch::Tensor offset;    // [C, 3] o', scene extents, reference camera's axes
+  double pivot_depth() const { return pivot_depth_; }
 
  private:
   std::vector<int> cameras_;      // rig index of each row
   std::vector<core::Mat3> turn_;  // factory turn of each row
   std::vector<int> row_;          // by view; -1: not corrected
+  double pivot_depth_ = 0;        // scene units
+
+  // Row `row`'s offset o given its turn D ([3, 3]): [3], scene extents.
+  torch::Tensor offset_of(int64_t row, const torch::Tensor& d, double extent) const;
 };
 TORCH_MODULE(RigRefinement);
+
+// The depth the reference camera looks at (scene units): over `views` (the
+// reference camera's), the median of each view's median depth of the
+// scene's points inside its image; scene_extent of the views where no
+// point is seen.
+double rig_pivot_depth(const io::Scene& scene, const std::vector<int>& views);
 
 }  // namespace ddhgs::train

@@ -138,6 +138,8 @@ CameraRefinementConfig parse_cameras(const json& c, const std::string& source) {
   o.rig_offset_lr = read<double>(c, s, "rig_offset_lr", source);
   o.rig_pull = read<double>(c, s, "rig_pull", source);
   o.rig_warmup_fraction = read<double>(c, s, "rig_warmup_fraction", source);
+  o.rig_align_fraction = read<double>(c, s, "rig_align_fraction", source);
+  o.rig_pivot = read<bool>(c, s, "rig_pivot", source);
   return o;
 }
 

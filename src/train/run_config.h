@@ -112,9 +112,16 @@ struct CameraRefinementConfig {
   // (train/rig_refinement.h): Adam rates of its rotation (rad) and offset
   // (scene extents), and the weight of its L2 pull towards the factory values;
   // for the first rig_warmup_fraction of the iterations only the reference
-  // camera's views train, so the Gaussians settle where it places them.
-  bool rig = false;
+  // camera's views train, so the Gaussians settle where it places them;
+  // for the next rig_align_fraction the band cameras' views train their
+  // corrections and the colours but not the Gaussians' shape, with rates
+  // falling to a tenth, and the corrections are held after it (0: no such
+  // phase; the rates fall with the others). rig_pivot: each band camera
+  // turns about the point the reference camera looks at (the scene's median
+  // depth in its views) instead of its centre (train/rig_refinement.h).
+  bool rig = false, rig_pivot = false;
   double rig_rotation_lr = 0, rig_offset_lr = 0, rig_pull = 0, rig_warmup_fraction = 0;
+  double rig_align_fraction = 0;
 };
 
 struct DensifyConfig {

@@ -42,6 +42,9 @@ Schedule schedule_of(const RunConfig& config) {
   s.views_cropped_until = of_run(config.loss.view_fraction_until_fraction, s.iterations);
   const CameraRefinementConfig& cameras = config.camera_refinement;
   s.reference_views_until = cameras.rig ? of_run(cameras.rig_warmup_fraction, s.iterations) : 0;
+  if (cameras.rig && cameras.rig_align_fraction > 0)
+    s.rig_align_until = std::min(
+        s.iterations, s.reference_views_until + interval(cameras.rig_align_fraction, s.iterations));
   return s;
 }
 

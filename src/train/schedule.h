@@ -28,11 +28,18 @@ struct Schedule {
   // A rig run (camera_refinement.rig) trains on the reference camera's views
   // alone up to and including this iteration; 0: from the start on all.
   int64_t reference_views_until = 0;
+  // ... and after it, up to and including this iteration, aligns the band
+  // cameras (camera_refinement.rig_align_fraction): their views train their
+  // corrections and the colours, not the Gaussians' shape; 0: no such phase.
+  int64_t rig_align_until = 0;
 
   bool densifies(int64_t iteration) const { return iteration < densify_until; }
   bool draws_bands(int64_t iteration) const { return iteration <= bands_drawn_until; }
   bool crops_views(int64_t iteration) const { return iteration <= views_cropped_until; }
   bool reference_views_only(int64_t iteration) const { return iteration <= reference_views_until; }
+  bool aligns_rig(int64_t iteration) const {
+    return iteration > reference_views_until && iteration <= rig_align_until;
+  }
 };
 
 struct RunConfig;

@@ -70,11 +70,21 @@ void Trainer::set_learning_rates(int64_t iteration) {
     state_.adam.group("camera_refinement/translation").lr =
         config_.camera_refinement.translation_lr;
   if (rig_refinement_) {
-    // The band cameras' corrections fall with them, to settle within a
-    // small fraction of their rate.
+    // Without an alignment phase the band cameras' corrections fall with
+    // the other rates, to settle within a small fraction of their rate; with
+    // one they fall log-linearly to a tenth over it and are held after it.
+    double scale = late;
+    if (schedule_.rig_align_until > 0) {
+      const int64_t start = schedule_.reference_views_until, end = schedule_.rig_align_until;
+      scale =
+          iteration <= start ? 1.0
+          : iteration <= end
+              ? std::pow(0.1, double(iteration - start) / double(std::max<int64_t>(1, end - start)))
+              : 0.0;
+    }
     state_.adam.group("rig_refinement/rotation").lr =
-        late * config_.camera_refinement.rig_rotation_lr;
-    state_.adam.group("rig_refinement/offset").lr = late * config_.camera_refinement.rig_offset_lr;
+        scale * config_.camera_refinement.rig_rotation_lr;
+    state_.adam.group("rig_refinement/offset").lr = scale * config_.camera_refinement.rig_offset_lr;
   }
 }
 
@@ -86,6 +96,15 @@ render::RenderOutput Trainer::render_training_view(int view, const torch::Tensor
       crop ? crop_camera(scene_->views[view].camera, *crop) : scene_->views[view].camera;
   model::Gaussians g = state_.gaussians;  // handles to the same tensors
   if (band_map.defined()) g.colour = g.colour.mapped(band_map);
+  if (aligning_rig_ && scene_->views[size_t(view)].rig_camera != scene_->rig->reference_camera) {
+    // The alignment phase: a band camera's view moves its correction and
+    // the colours, not the Gaussians' shape, which the reference camera's
+    // views alone place.
+    g.means = g.means.detach();
+    g.quats = g.quats.detach();
+    g.log_scales = g.log_scales.detach();
+    g.logit_opacities = g.logit_opacities.detach();
+  }
   if (rig_refinement_)
     std::tie(g.means, g.quats) = rig_refinement_->move(view, camera, g.means, g.quats, extent_);
   if (camera_refinement_)
@@ -156,6 +175,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   const bool joint = diffusion_ && diffusion_->options().joint && iteration <= config_.iterations;
   if (joint && iteration > diffusion_->options().warmup) torch_threads.emplace();
   set_learning_rates(iteration);
+  aligning_rig_ = rig_refinement_ && !pseudo && schedule_.aligns_rig(iteration);
   auto& g = state_.gaussians;
   if (every(iteration, schedule_.sh_degree_every) && g.active_sh_degree < g.max_sh_degree())
     ++g.active_sh_degree;
@@ -216,7 +236,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     if (pseudo) loss.total = loss.total * diffusion_->options().distill_weight;
     if (crop) loss.total = loss.total * crop->loss_scale;
     if (rig_refinement_ && !pseudo)
-      loss.total = loss.total + rig_refinement_->pull(config_.camera_refinement.rig_pull);
+      loss.total = loss.total + rig_refinement_->pull(config_.camera_refinement.rig_pull, extent_);
   }
   {
     core::StageScope stage("backward (other)");

@@ -164,6 +164,7 @@ class Trainer : private StageHost {
   CameraRefinement camera_refinement_{nullptr};  // camera_refinement.enabled
   ExposureCorrection exposure_{nullptr};         // model.exposure_correction
   RigRefinement rig_refinement_{nullptr};        // camera_refinement.rig
+  bool aligning_rig_ = false;                    // this step is in the rig's alignment phase
   std::vector<int> reference_train_;             // its reference camera's training views
   std::unique_ptr<DiffusionTerm> diffusion_;     // loss.diffusion > 0
   std::unique_ptr<DiffusionStage> stage_;        // with diffusion_

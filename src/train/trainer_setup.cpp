@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/text.h"
 #include "io/files/atomic_file.h"
 #include "io/scene/backdrop.h"
 #include "train/config.h"
@@ -263,10 +264,16 @@ void Trainer::build_modules() {
                        }});
   }
   if (config_.camera_refinement.rig) {
-    rig_refinement_ = RigRefinement(*scene_);
     for (int v : scene_->train)
       if (scene_->views[size_t(v)].rig_camera == scene_->rig->reference_camera)
         reference_train_.push_back(v);
+    const double pivot = config_.camera_refinement.rig_pivot && !reference_train_.empty()
+                             ? rig_pivot_depth(*scene_, reference_train_)
+                             : 0.0;
+    rig_refinement_ = RigRefinement(*scene_, pivot);
+    if (pivot > 0 && !auxiliary_)
+      core::log_info("rig refinement: band cameras turn about the point " + core::fixed(pivot, 3) +
+                     " scene units ahead of them (camera_refinement.rig_pivot)");
     add_module("rig_refinement", rig_refinement_.ptr(), config_.camera_refinement.rig_rotation_lr);
   }
   DiffusionTermOptions diffusion = with_bands(config_.diffusion, scene_->bands());

@@ -60,17 +60,33 @@ TEST(Schedule, FractionsBecomeIterationNumbersOfTheRun) {
   // The rates other than the positions' fall in the last tenth.
   EXPECT_EQ(s.lr_decay_from, 810);
   // Only a rig run's warm-up trains on the reference camera's views alone:
-  // its first fifth.
+  // its first fifth; only a rig run aligns its band cameras.
   EXPECT_EQ(s.reference_views_until, 0);
   EXPECT_FALSE(s.reference_views_only(1));
+  EXPECT_EQ(s.rig_align_until, 0);
   c["camera_refinement"]["rig"] = true;
   s = train::schedule_of(train::parse_run_config(c, "test"));
   EXPECT_EQ(s.reference_views_until, 180);
   EXPECT_TRUE(s.reference_views_only(180));
   EXPECT_FALSE(s.reference_views_only(181));
+  // Then, asked to, the band cameras align for the next two fifths.
+  EXPECT_EQ(s.rig_align_until, 0);
+  c["camera_refinement"]["rig_align_fraction"] = 0.4;
+  s = train::schedule_of(train::parse_run_config(c, "test"));
+  EXPECT_EQ(s.rig_align_until, 540);
+  EXPECT_FALSE(s.aligns_rig(180));
+  EXPECT_TRUE(s.aligns_rig(181));
+  EXPECT_TRUE(s.aligns_rig(540));
+  EXPECT_FALSE(s.aligns_rig(541));
   c["camera_refinement"]["rig_warmup_fraction"] = 0.0;
   s = train::schedule_of(train::parse_run_config(c, "test"));
   EXPECT_FALSE(s.reference_views_only(1));
+  EXPECT_TRUE(s.aligns_rig(1));
+  EXPECT_EQ(s.rig_align_until, 360);
+  c["camera_refinement"]["rig_align_fraction"] = 0.0;
+  s = train::schedule_of(train::parse_run_config(c, "test"));
+  EXPECT_EQ(s.rig_align_until, 0);
+  EXPECT_FALSE(s.aligns_rig(1));
   // An interval that rounds to 0 still happens every iteration; a zero
   // fraction switches it off.
   c["iterations"] = 4;
