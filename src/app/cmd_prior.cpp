@@ -138,7 +138,7 @@ int run(PriorArgs& args) {
   if (trainer.step() >= training.steps) bar.finish();  // a stopped bar stays where it stopped
   core::log_info("prior: " + out.string() + " at step " + std::to_string(trainer.step()) +
                  (trainer.step() < training.steps ? " (stopped; rerun to go on)" : ""));
-  return train::stop_requested() ? 130 : 0;
+  return train::stop_requested() ? train::interrupted_exit_code() : 0;
 }
 
 Action setup(CLI::App& parent) {

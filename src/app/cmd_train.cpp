@@ -1,7 +1,6 @@
 // `ddhgs train DATA --out RUN`: trains N-band Gaussians on a dataset folder.
 // A preset (configs/) gives every hyperparameter; each flag overrides one key.
 #include <algorithm>
-#include <csignal>
 #include <filesystem>
 #include <memory>
 #include <vector>
@@ -83,13 +82,6 @@ void apply_flags(const TrainArgs& a, CLI::App* cmd, nlohmann::json& config) {
   if (iterations_given) config["optim"]["iterations_per_band_view"] = 0;
 }
 
-// The shell's convention for a process stopped by a signal: 128 + signal
-// (130 for Ctrl-C, 143 for SIGTERM).
-int interrupted_exit_code() {
-  const int signal = train::stop_signal();
-  return 128 + (signal > 0 ? signal : SIGINT);
-}
-
 int run_new(const TrainArgs& a, CLI::App* cmd) {
   if (a.out.empty()) throw core::Error("train: --out RUN is required");
   nlohmann::json config = train::load_preset(a.preset);
@@ -110,7 +102,7 @@ int run_new(const TrainArgs& a, CLI::App* cmd) {
   train::validate_config(config, "command line");
   auto trainer = train::Trainer::start(config, {a.out}, a.force);
   auto status = trainer->run();
-  if (status == train::TrainStatus::Interrupted) return interrupted_exit_code();
+  if (status == train::TrainStatus::Interrupted) return train::interrupted_exit_code();
   core::log_info("done: " + a.out + "/gaussians.ply; evaluate with: ddhgs eval " + a.out);
   return 0;
 }
@@ -127,7 +119,7 @@ int run_resume(const TrainArgs& a, CLI::App* cmd) {
     throw core::Error("--iterations", "is " + std::to_string(a.iterations) + ", expected >= 1");
   auto trainer = train::Trainer::resume({a.resume}, a.iterations);
   auto status = trainer->run();
-  if (status == train::TrainStatus::Interrupted) return interrupted_exit_code();
+  if (status == train::TrainStatus::Interrupted) return train::interrupted_exit_code();
   core::log_info("done: " + a.resume + "/gaussians.ply");
   return 0;
 }

@@ -29,6 +29,11 @@ int stop_signal() {
   return g_stop_signal;
 }
 
+int interrupted_exit_code() {
+  const int signal = stop_signal();
+  return 128 + (signal > 0 ? signal : SIGINT);
+}
+
 StopSignalGuard::StopSignalGuard() {
   previous_int_ = std::signal(SIGINT, on_stop_signal);
   previous_term_ = std::signal(SIGTERM, on_stop_signal);

@@ -11,6 +11,9 @@ void request_stop();
 bool stop_requested();
 // The signal that asked (SIGINT, SIGTERM), 0 for request_stop().
 int stop_signal();
+// The shell's convention for a process stopped by a signal: 128 + signal
+// (130 for Ctrl-C, 143 for SIGTERM; 130 for request_stop()).
+int interrupted_exit_code();
 
 // While it lives, SIGINT and SIGTERM ask for a stop instead of ending the
 // process; it starts with no stop asked for, and the previous handlers come
