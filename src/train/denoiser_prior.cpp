@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "eval/metrics.h"
+#include "io/scene/scene_report.h"
 #include "train/checkpoint.h"
 #include "train/seed.h"
 
@@ -57,17 +58,12 @@ std::string to_string(PriorObjective objective) {
 }
 
 model::SpectralSubspace fit_scene_subspace(const io::Scene& scene, int64_t channels) {
-  core::require(!scene.train.empty(), scene.root, "has no training views to fit a subspace to");
-  core::require(!scene.band_per_view(), scene.root,
-                "is a band-per-view scene: no view holds every band for the prior's subspace");
-  const int64_t per_view = std::max<int64_t>(1, kSubspacePixels / int64_t(scene.train.size()));
-  std::vector<torch::Tensor> samples;
-  for (int v : scene.train) {
-    const torch::Tensor pixels = scene.image(v).reshape({-1, scene.bands()});
-    const int64_t stride = std::max<int64_t>(1, pixels.size(0) / per_view);
-    samples.push_back(pixels.slice(0, 0, pixels.size(0), stride));
-  }
-  return model::fit_spectral_subspace(torch::cat(samples), channels);
+  // Every training view, as the colour model samples its few (io::sample_spectra
+  // refuses a scene without training views or with band-per-view views).
+  const int views = std::max<int>(1, int(scene.train.size()));
+  const io::SpectraSample sample =
+      io::sample_spectra(scene, views, std::max<int64_t>(1, kSubspacePixels / views));
+  return model::fit_spectral_subspace(sample.spectra, channels);
 }
 
 std::unique_ptr<DiffusionTerm> prior_term(DiffusionTermOptions options, const io::Scene& scene) {

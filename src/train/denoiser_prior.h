@@ -53,9 +53,9 @@ struct PriorCheckView {
   model::SpectralSubspace subspace;
 };
 
-// A scene's subspace for the prior, from its training views' pixels (at most
-// kSubspacePixels, evenly strided through each view so the fit is the same on
-// every run); every view must hold every band.
+// A scene's subspace for the prior, from its training views' pixels (about
+// kSubspacePixels over all of them, every k-th pixel of each: io::sample_spectra,
+// the same on every run); every view must hold every band.
 model::SpectralSubspace fit_scene_subspace(const io::Scene& scene, int64_t channels);
 constexpr int64_t kSubspacePixels = 200000;
 
