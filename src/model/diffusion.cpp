@@ -215,14 +215,15 @@ torch::Tensor view_diffusion_loss(const Denoiser& denoiser, const torch::Tensor&
 torch::Tensor views_diffusion_loss(const Denoiser& denoiser, const std::vector<torch::Tensor>& gts,
                                    const std::vector<torch::Tensor>& renders, int64_t crop_px,
                                    at::Generator& generator, double min_snr_gamma) {
-  if (!denoiser.subspace)
-    return views_diffusion_loss(as_predictor(denoiser), denoiser.schedule, gts, renders, crop_px,
-                                generator, min_snr_gamma);
-  std::vector<torch::Tensor> gt_coeffs, render_coeffs;
-  for (const torch::Tensor& gt : gts) gt_coeffs.push_back(denoiser.subspace->encode(gt));
-  for (const torch::Tensor& r : renders) render_coeffs.push_back(denoiser.subspace->encode(r));
-  return views_diffusion_loss(as_predictor(denoiser), denoiser.schedule, gt_coeffs, render_coeffs,
+  std::vector<torch::Tensor> gt_inputs, render_inputs;
+  for (const torch::Tensor& gt : gts) gt_inputs.push_back(to_denoiser_space(denoiser, gt));
+  for (const torch::Tensor& r : renders) render_inputs.push_back(to_denoiser_space(denoiser, r));
+  return views_diffusion_loss(as_predictor(denoiser), denoiser.schedule, gt_inputs, render_inputs,
                               crop_px, generator, min_snr_gamma);
+}
+
+torch::Tensor to_denoiser_space(const Denoiser& denoiser, const torch::Tensor& image) {
+  return denoiser.subspace ? denoiser.subspace->encode(image) : image;
 }
 
 int64_t Denoiser::bands() const {

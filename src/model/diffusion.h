@@ -118,6 +118,10 @@ using NoisePredictor = std::function<torch::Tensor(const torch::Tensor& x_t,   /
                                                    const torch::Tensor& t)>;   // [B] int64
 NoisePredictor as_predictor(const Denoiser& denoiser);
 
+// An image [..., N] as the denoiser's U-Net sees it: its subspace
+// coefficients [..., K], or the image itself when there is no subspace.
+torch::Tensor to_denoiser_space(const Denoiser& denoiser, const torch::Tensor& image);
+
 // Mean over samples of w(t) * mean over elements of (eps - eps_theta(x_t, t |
 // cond))^2 with t uniform in [0, T) per sample and eps standard normal, both
 // drawn from `generator`. w(t) = 1 (the paper) when min_snr_gamma <= 0, else

@@ -83,21 +83,17 @@ FinetuneLosses finetune_losses(model::Denoiser& denoiser, const DiffusionTermOpt
     torch::Tensor cond = render.detach();
     if (options.condition_noise > 0)
       cond = cond + options.condition_noise * torch::randn(cond.sizes(), generator, cond.options());
-    conds.push_back(cond);
-    gts.push_back(target.to(cond.dtype()));
+    // Both losses in the space the denoiser works in.
+    conds.push_back(model::to_denoiser_space(denoiser, cond));
+    gts.push_back(model::to_denoiser_space(denoiser, target.to(cond.dtype())));
   }
   // Both losses see the same crops, t and eps.
   at::Generator same = generator.clone();
   FinetuneLosses out;
-  out.loss = model::views_diffusion_loss(denoiser, gts, conds, options.finetune_crop, generator,
-                                         options.min_snr_gamma);
+  out.loss =
+      model::views_diffusion_loss(model::as_predictor(denoiser), denoiser.schedule, gts, conds,
+                                  options.finetune_crop, generator, options.min_snr_gamma);
   torch::NoGradGuard no_grad;
-  // The identity in the space the denoiser works in.
-  if (denoiser.subspace)
-    for (size_t i = 0; i < gts.size(); ++i) {
-      gts[i] = denoiser.subspace->encode(gts[i]);
-      conds[i] = denoiser.subspace->encode(conds[i]);
-    }
   out.identity =
       model::views_diffusion_loss(model::identity_predictor(denoiser.schedule), denoiser.schedule,
                                   gts, conds, options.finetune_crop, same, options.min_snr_gamma);
