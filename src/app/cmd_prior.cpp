@@ -31,8 +31,19 @@ struct PriorArgs {
   int64_t check_every = 500;
   bool force = false;
   std::string objective = "restoration";
-  std::string command_line;
 };
+
+// The command with the settings that decide the weights (the corpus and the
+// output as given), for the prior's record.
+std::string command_line(const PriorArgs& args) {
+  const train::PriorTrainingOptions& t = args.training;
+  std::ostringstream line;
+  line << "ddhgs prior " << args.corpus << " --out " << args.out << " --objective "
+       << args.objective << " --steps " << t.steps << " --batch " << t.batch << " --crop " << t.crop
+       << " --lr " << core::format_g(t.lr) << " --channels " << args.channels << " --base-channels "
+       << args.base_channels << " --seed " << t.seed;
+  return line.str();
+}
 
 // The denoiser to start from: the default preset's network, schedule and
 // parameterisation, in `channels` channels, its weights from `seed`.
@@ -68,7 +79,7 @@ fs::path curve_path(const fs::path& prior) {
   return p;
 }
 
-int run(PriorArgs& args) {
+int run(const PriorArgs& args) {
   const fs::path out = args.out, state = train::prior_state_path(out), curve = curve_path(out);
   if (out.has_parent_path()) fs::create_directories(out.parent_path());
   if (args.force)
@@ -93,7 +104,7 @@ int run(PriorArgs& args) {
                    std::to_string(training.steps) + ")");
     return 0;
   }
-  nlohmann::json info = {{"command", args.command_line},
+  nlohmann::json info = {{"command", command_line(args)},
                          {"corpus", corpus.description},
                          {"objective", train::to_string(training.objective)},
                          {"batch", training.batch},
@@ -182,15 +193,7 @@ Action setup(CLI::App& parent) {
       ->default_val(0);
   cmd->add_flag("--force", args->force, "Start over, replacing the prior and its state");
   return [args] {
-    // The settings that decide the weights (the corpus and the output as given).
-    std::ostringstream line;
-    const train::PriorTrainingOptions& t = args->training;
     args->training.objective = train::parse_prior_objective(args->objective, "--objective");
-    line << "ddhgs prior " << args->corpus << " --out " << args->out << " --objective "
-         << args->objective << " --steps " << t.steps << " --batch " << t.batch << " --crop "
-         << t.crop << " --lr " << core::format_g(t.lr) << " --channels " << args->channels
-         << " --base-channels " << args->base_channels << " --seed " << t.seed;
-    args->command_line = line.str();
     return run(*args);
   };
 }

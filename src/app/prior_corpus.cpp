@@ -58,9 +58,9 @@ PriorCorpus load_prior_corpus(const fs::path& corpus, int64_t channels, int chec
   size_t check_entries = 0;
   core::ProgressBar bar("prior corpus", int64_t(entries.size()));
   for (size_t i = 0; i < entries.size(); ++i) {
-    const bool is_check = entries.size() == 1 ? false
-                                              : (i + 1) % size_t(check_every) == 0 ||
-                                                    (i + 1 == entries.size() && check_entries == 0);
+    const bool last = i + 1 == entries.size();
+    const bool is_check =
+        entries.size() > 1 && ((i + 1) % size_t(check_every) == 0 || (last && check_entries == 0));
     TrainedRun run = open_trained_run(entries[i].run, entries[i].scene.string());
     const io::Scene& scene = *run.scene;
     core::require(scene.has_clean(), scene.root, "has no clean truth (clean/) to learn from");
