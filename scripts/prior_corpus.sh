@@ -42,11 +42,15 @@ if [ ! -x "$ddhgs" ]; then
   exit 2
 fi
 for setting in "ITERS=$iters" "DOWNSIZE=$downsize"; do
-  if ! [[ "${setting#*=}" =~ ^[1-9][0-9]*$ ]] || [ "$downsize" -gt 8 ]; then
+  if ! [[ "${setting#*=}" =~ ^[1-9][0-9]*$ ]]; then
     echo "prior_corpus.sh: $setting: expected a positive whole number (DOWNSIZE at most 8)" >&2
     exit 2
   fi
 done
+if [ "$downsize" -gt 8 ]; then
+  echo "prior_corpus.sh: DOWNSIZE=$downsize: expected a positive whole number (DOWNSIZE at most 8)" >&2
+  exit 2
+fi
 mkdir -p "$out/scenes" "$out/runs" "$out/logs" "$out/entries"
 
 presets=(demo bayspec surface-optics noisy-edges)
