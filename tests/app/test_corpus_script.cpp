@@ -16,10 +16,7 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 std::string corpus_command(const fs::path& out, const std::string& count) {
-  return "DDHGS=" + test::ddhgs_binary() + " PYTHON=" + test::python() +
-         " DOWNSIZE=6 ITERS=20 bash " +
-         (test::source_dir() / "scripts" / "prior_corpus.sh").string() + " " + out.string() + " " +
-         count + " 2>&1";
+  return test::prior_corpus_command(out, count, 6, 20);
 }
 
 size_t count_of(const std::string& text, const std::string& word) {

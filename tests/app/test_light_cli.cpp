@@ -46,13 +46,7 @@ const fs::path& strip() {
                     &out),
               0)
         << out;
-    EXPECT_EQ(
-        ddhgs("process " + (root / "rig" / "captures").string() + " --rig --skip-colmap --poses " +
-                  (root / "rig" / "truth" / "transforms.json").string() + " --out " +
-                  (root / "scene").string(),
-              &out),
-        0)
-        << out;
+    EXPECT_EQ(test::process_with_true_poses(root / "rig", root / "scene", "", &out), 0) << out;
     fs::copy(root / "rig" / "truth" / "clean", root / "scene" / "clean");
     return root / "scene";
   }();

@@ -33,6 +33,19 @@ using test::ddhgs;
 
 using test::read_json;
 
+// The strip's training length: DDHGS_ORTHO_ITERATIONS (800 unless set).
+std::string strip_iterations() {
+  const char* env = std::getenv("DDHGS_ORTHO_ITERATIONS");
+  return env && *env ? env : "800";
+}
+
+int train_strip(const fs::path& scene, const fs::path& run, std::string* out) {
+  return ddhgs("train " + scene.string() + " --out " + run.string() +
+                   " --preset demo --iterations " + strip_iterations() +
+                   " --set output.test_every=0",
+               out);
+}
+
 // A GeoTIFF as GDAL reads it: gdalinfo's description and the pixels through
 // gdal_translate to a raw band-sequential float32 file.
 struct Raster {
@@ -91,11 +104,7 @@ TEST(OrthoCli, AGeoreferencedStripRendersAnOrthomosaicThatMatchesTheTruth) {
   ASSERT_EQ(ddhgs("synth --preset rig-nadir --out " + strip.string(), &out), 0) << out;
   // The reference camera's true poses (COLMAP does not pose this small
   // strip): the fit then finds the truth's world, placed by the GPS alone.
-  ASSERT_EQ(ddhgs("process " + (strip / "captures").string() + " --rig --skip-colmap --poses " +
-                      (strip / "truth" / "transforms.json").string() + " --out " + scene.string(),
-                  &out),
-            0)
-      << out;
+  ASSERT_EQ(test::process_with_true_poses(strip, scene, "", &out), 0) << out;
   // The georeference from the GPS: exact GPS and poses, so no residual.
   const json georef = read_json(scene / "georef.json");
   const json synth = read_json(strip / "synth.json");
@@ -113,13 +122,7 @@ TEST(OrthoCli, AGeoreferencedStripRendersAnOrthomosaicThatMatchesTheTruth) {
   ASSERT_EQ(ddhgs("info " + scene.string(), &out), 0) << out;
   EXPECT_NE(out.find("georef      EPSG:32630"), std::string::npos) << out;
 
-  const char* env = std::getenv("DDHGS_ORTHO_ITERATIONS");
-  const std::string iterations = env && *env ? env : "800";
-  ASSERT_EQ(ddhgs("train " + scene.string() + " --out " + run.string() +
-                      " --preset demo --iterations " + iterations + " --set output.test_every=0",
-                  &out),
-            0)
-      << out;
+  ASSERT_EQ(train_strip(scene, run, &out), 0) << out;
   EXPECT_EQ(read_json(run / "georef.json"), georef);
 
   // The orthomosaic on the truth's grid spacing.
@@ -175,7 +178,7 @@ TEST(OrthoCli, AGeoreferencedStripRendersAnOrthomosaicThatMatchesTheTruth) {
   std::printf(
       "orthomosaic vs truth: PSNR %.2f dB over %.1f %% of the truth's footprint (%s "
       "iterations)\n",
-      psnr, 100 * covered, iterations.c_str());
+      psnr, 100 * covered, strip_iterations().c_str());
   // The ground disc and the plant: the backdrop around them is the learned
   // background, which no Gaussian covers.
   EXPECT_GT(covered, 0.2);
@@ -205,18 +208,8 @@ TEST(OrthoCli, GroundControlTargetsLandWithinOneGroundSampleDistance) {
   std::string out;
   ASSERT_EQ(ddhgs("synth --preset rig-nadir --gcp-targets --out " + strip.string(), &out), 0)
       << out;
-  ASSERT_EQ(ddhgs("process " + (strip / "captures").string() + " --rig --skip-colmap --poses " +
-                      (strip / "truth" / "transforms.json").string() + " --out " + scene.string(),
-                  &out),
-            0)
-      << out;
-  const char* env = std::getenv("DDHGS_ORTHO_ITERATIONS");
-  const std::string iterations = env && *env ? env : "800";
-  ASSERT_EQ(ddhgs("train " + scene.string() + " --out " + run.string() +
-                      " --preset demo --iterations " + iterations + " --set output.test_every=0",
-                  &out),
-            0)
-      << out;
+  ASSERT_EQ(test::process_with_true_poses(strip, scene, "", &out), 0) << out;
+  ASSERT_EQ(train_strip(scene, run, &out), 0) << out;
   ASSERT_EQ(ddhgs("render " + run.string() + " --ortho", &out), 0) << out;  // the flight's GSD
   const Raster r = read_with_gdal(run / "renders" / "ortho" / "reflectance.tif");
   const json synth = read_json(strip / "synth.json");
@@ -303,11 +296,7 @@ TEST(OrthoCli, NoisyGpsPlacesTheControlPointsWithinHalfAMetre) {
                   &out),
             0)
       << out;
-  ASSERT_EQ(ddhgs("process " + (survey / "captures").string() + " --rig --skip-colmap --poses " +
-                      (survey / "truth" / "transforms.json").string() + " --out " + scene.string(),
-                  &out),
-            0)
-      << out;
+  ASSERT_EQ(test::process_with_true_poses(survey, scene, "", &out), 0) << out;
   const json georef = read_json(scene / "georef.json");
   const json synth = read_json(survey / "synth.json");
   EXPECT_EQ(georef["fit"]["captures"], 200);

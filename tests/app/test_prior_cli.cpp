@@ -5,8 +5,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include <fstream>
-
 #include "reliability/cli_support.h"
 #include "support/test_support.h"
 
@@ -15,28 +13,17 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-int ddhgs(const std::string& args, std::string* out) {
-  return test::run_command(test::ddhgs_binary() + " " + args + " 2>&1", out);
-}
+using test::ddhgs;
 
-int lines_of(const fs::path& path) {
-  std::ifstream in(path);
-  int n = 0;
-  for (std::string line; std::getline(in, line);) ++n;
-  return n;
+size_t lines_of(const fs::path& path) {
+  return test::lines(io::read_file(path));
 }
 
 TEST(PriorCli, TrainsResumesAndServesARun) {
   const fs::path root = test::temp_dir("prior_cli");
   const fs::path corpus = root / "corpus";
   std::string out;
-  ASSERT_EQ(test::run_command("DDHGS=" + test::ddhgs_binary() + " PYTHON=" + test::python() +
-                                  " DOWNSIZE=4 ITERS=30 bash " +
-                                  (test::source_dir() / "scripts" / "prior_corpus.sh").string() +
-                                  " " + corpus.string() + " 2 2>&1",
-                              &out),
-            0)
-      << out;
+  ASSERT_EQ(test::run_command(test::prior_corpus_command(corpus, "2", 4, 30), &out), 0) << out;
 
   const fs::path prior = root / "priors" / "p.pt";  // its folder is made
   const std::string common = " --batch 2 --crop 16 --base-channels 8 --check-every 2";
@@ -48,7 +35,7 @@ TEST(PriorCli, TrainsResumesAndServesARun) {
   const fs::path curve = fs::path(prior.string() + ".curve.csv");
   ASSERT_TRUE(fs::exists(prior));
   ASSERT_TRUE(fs::exists(prior.string() + ".state.pt"));
-  EXPECT_EQ(lines_of(curve), 3);  // header, steps 2 and 4
+  EXPECT_EQ(lines_of(curve), 3u);  // header, steps 2 and 4
   EXPECT_NE(out.find(prior.string() + " at step 4"), std::string::npos) << out;
 
   // Asked for more steps, it goes on from the last check.
@@ -57,7 +44,7 @@ TEST(PriorCli, TrainsResumesAndServesARun) {
       0)
       << out;
   EXPECT_NE(out.find("resuming " + prior.string() + " at step 4"), std::string::npos) << out;
-  EXPECT_EQ(lines_of(curve), 4);
+  EXPECT_EQ(lines_of(curve), 4u);
   EXPECT_NE(out.find(prior.string() + " at step 6"), std::string::npos) << out;
   ASSERT_EQ(
       ddhgs("prior " + corpus.string() + " --out " + prior.string() + " --steps 6" + common, &out),

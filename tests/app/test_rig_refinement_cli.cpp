@@ -34,12 +34,7 @@ TEST(RigRefinementCli, TrainingFindsTheTurnedCamerasAndResumesWithThem) {
             &out),
       0)
       << out;
-  ASSERT_EQ(ddhgs("process " + (rig / "captures").string() +
-                      " --rig --reference-camera 1 --skip-colmap --poses " +
-                      (rig / "truth" / "transforms.json").string() + " --out " + scene.string(),
-                  &out),
-            0)
-      << out;
+  ASSERT_EQ(test::process_with_true_poses(rig, scene, "--reference-camera 1", &out), 0) << out;
   fs::copy(rig / "truth" / "clean", scene / "clean");
   const std::string train =
       "train " + scene.string() + " --preset demo --seed 0 --set camera_refinement.rig=true --out ";
@@ -99,12 +94,7 @@ TEST(RigRefinementCli, TheWarmUpTrainsOnTheReferenceCameraAlone) {
                   &out),
             0)
       << out;
-  ASSERT_EQ(ddhgs("process " + (rig / "captures").string() +
-                      " --rig --reference-camera 1 --skip-colmap --poses " +
-                      (rig / "truth" / "transforms.json").string() + " --out " + scene.string(),
-                  &out),
-            0)
-      << out;
+  ASSERT_EQ(test::process_with_true_poses(rig, scene, "--reference-camera 1", &out), 0) << out;
   const std::string train =
       "train " + scene.string() +
       " --preset demo --seed 0 --iterations 40 --set camera_refinement.rig=true"

@@ -131,20 +131,25 @@ TEST(SpectralSubspace, AnUntrainedDenoiserInASubspaceReturnsTheRender) {
   EXPECT_LT(off_subspace.abs().max().item<double>(), 1e-5);
 }
 
+// The denoiser written to dir/name under the key "denoiser", read back.
+model::Denoiser round_trip(model::Denoiser& denoiser, const std::string& name) {
+  const auto file = test::temp_dir("subspace_denoiser") / name;
+  {
+    torch::serialize::OutputArchive archive;
+    model::save_denoiser(archive, "denoiser", denoiser);
+    archive.save_to(file.string());
+  }
+  torch::serialize::InputArchive archive;
+  archive.load_from(file.string());
+  return model::load_denoiser(archive, "denoiser", file);
+}
+
 TEST(SpectralSubspace, TheDenoiserFileKeepsItsSubspace) {
   torch::manual_seed(6);
   model::Denoiser d{test::live_unet(test::tiny_unet_options(2), 7), model::NoiseSchedule(),
                     model::Prediction::Residual};
   d.subspace = model::fit_spectral_subspace(torch::rand({300, 5}), 2);
-  const auto file = test::temp_dir("subspace_denoiser") / "denoiser.pt";
-  {
-    torch::serialize::OutputArchive archive;
-    model::save_denoiser(archive, "denoiser", d);
-    archive.save_to(file.string());
-  }
-  torch::serialize::InputArchive archive;
-  archive.load_from(file.string());
-  const model::Denoiser loaded = model::load_denoiser(archive, "denoiser", file);
+  const model::Denoiser loaded = round_trip(d, "denoiser.pt");
   ASSERT_TRUE(loaded.subspace.has_value());
   EXPECT_TRUE(torch::equal(loaded.subspace->mean, d.subspace->mean));
   EXPECT_TRUE(torch::equal(loaded.subspace->basis, d.subspace->basis));
@@ -159,16 +164,8 @@ TEST(SpectralSubspace, TheDenoiserFileKeepsItsSubspace) {
   model::Denoiser wrong{test::live_unet(test::tiny_unet_options(3), 8), model::NoiseSchedule(),
                         model::Prediction::Residual};
   wrong.subspace = d.subspace;
-  const auto bad = test::temp_dir("subspace_denoiser") / "wrong.pt";
-  {
-    torch::serialize::OutputArchive out;
-    model::save_denoiser(out, "denoiser", wrong);
-    out.save_to(bad.string());
-  }
-  torch::serialize::InputArchive in;
-  in.load_from(bad.string());
   try {
-    model::load_denoiser(in, "denoiser", bad);
+    round_trip(wrong, "wrong.pt");
     FAIL() << "a mismatched subspace was accepted";
   } catch (const core::Error& e) {
     EXPECT_NE(std::string(e.what()).find("wrong.pt"), std::string::npos) << e.what();

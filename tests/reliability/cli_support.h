@@ -79,4 +79,25 @@ inline const std::filesystem::path& tiny_scene() {
   return dir;
 }
 
+// `scripts/prior_corpus.sh OUT COUNT` with this build's ddhgs, the drawn
+// sizes divided by `downsize` and runs of `iters` iterations.
+inline std::string prior_corpus_command(const std::filesystem::path& out, const std::string& count,
+                                        int downsize, int iters) {
+  return "DDHGS=" + ddhgs_binary() + " PYTHON=" + python() +
+         " DOWNSIZE=" + std::to_string(downsize) + " ITERS=" + std::to_string(iters) + " bash " +
+         (source_dir() / "scripts" / "prior_corpus.sh").string() + " " + out.string() + " " + count;
+}
+
+// `ddhgs process SYNTH/captures --rig FLAGS --skip-colmap --poses
+// SYNTH/truth/transforms.json --out SCENE`: a synthetic rig's captures posed
+// by its reference camera's true poses (COLMAP does not pose small rigs).
+inline int process_with_true_poses(const std::filesystem::path& synth,
+                                   const std::filesystem::path& scene, const std::string& flags,
+                                   std::string* out) {
+  return ddhgs("process " + (synth / "captures").string() + " --rig " + flags +
+                   " --skip-colmap --poses " + (synth / "truth" / "transforms.json").string() +
+                   " --out " + scene.string(),
+               out);
+}
+
 }  // namespace ddhgs::test
