@@ -73,6 +73,24 @@ void append_curve(const fs::path& path, const std::string& line) {
   core::require(bool(out), path, "cannot be written");
 }
 
+// The training seconds a resumed prior had spent up to `step`: the seconds
+// of the curve's last row at or before it (0 without one), so the curve's
+// seconds count the whole training across reruns.
+double curve_seconds_at(const fs::path& path, int64_t step) {
+  std::ifstream in(path);
+  std::string line;
+  double seconds = 0;
+  while (std::getline(in, line)) {
+    int64_t row_step = 0;
+    double row_seconds = 0;
+    char comma = 0;
+    std::istringstream row(line);
+    if (row >> row_step >> comma >> row_seconds && comma == ',' && row_step <= step)
+      seconds = row_seconds;
+  }
+  return seconds;
+}
+
 fs::path curve_path(const fs::path& prior) {
   fs::path p = prior;
   p += ".curve.csv";
@@ -114,6 +132,7 @@ int run(const PriorArgs& args) {
   train::StopSignalGuard stop_guard;
   core::ProgressBar bar("prior", training.steps);
   const auto start = std::chrono::steady_clock::now();
+  const double seconds_before = curve_seconds_at(curve, trainer.step());
   double loss_sum = 0, identity_sum = 0;
   int64_t since = 0;
   auto checkpoint = [&] {
@@ -126,6 +145,7 @@ int run(const PriorArgs& args) {
                      " dB raw");
     }
     const double seconds =
+        seconds_before +
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     append_curve(curve, std::to_string(trainer.step()) + "," + core::format_g(seconds) + "," +
                             core::format_g(since ? loss_sum / double(since) : 0) + "," +

@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "reliability/cli_support.h"
 #include "support/test_support.h"
@@ -46,6 +49,16 @@ TEST(PriorCli, TrainsResumesAndServesARun) {
   EXPECT_NE(out.find("resuming " + prior.string() + " at step 4"), std::string::npos) << out;
   EXPECT_EQ(lines_of(curve), 4u);
   EXPECT_NE(out.find(prior.string() + " at step 6"), std::string::npos) << out;
+  {  // the curve's seconds count the whole training, across the rerun
+    std::istringstream rows(io::read_file(curve));
+    std::string row;
+    std::vector<double> seconds;
+    std::getline(rows, row);  // header
+    while (std::getline(rows, row)) seconds.push_back(std::stod(row.substr(row.find(',') + 1)));
+    ASSERT_EQ(seconds.size(), 3u);
+    EXPECT_GT(seconds[1], 0);
+    EXPECT_GT(seconds[2], seconds[1]);
+  }
   ASSERT_EQ(
       ddhgs("prior " + corpus.string() + " --out " + prior.string() + " --steps 6" + common, &out),
       0)
