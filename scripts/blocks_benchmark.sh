@@ -14,7 +14,7 @@
 #
 # Environment: DDHGS (default build/ddhgs), VIEWS (48), LINES (4), WIDTH
 # (96), HEIGHT (72), ITERATIONS (of the single run; 3000), PRESET (demo),
-# BLOCKS (2x2), SEED (of the flight; 0), PYTHON (a python3 with numpy;
+# BLOCKS (2x2), SEED (of the flight; 0), TRAIN_SEED (of every training; 0), PYTHON (a python3 with numpy;
 # default /usr/bin/python3; gdal_translate reads the orthomosaics).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,6 +22,7 @@ ddhgs="$(realpath "${DDHGS:-build/ddhgs}")"
 out="${1:-/tmp/ddhgs-blocks-benchmark}"
 views="${VIEWS:-48}" lines="${LINES:-4}" width="${WIDTH:-96}" height="${HEIGHT:-72}"
 iterations="${ITERATIONS:-3000}" preset="${PRESET:-demo}" grid="${BLOCKS:-2x2}" seed="${SEED:-0}"
+train_seed="${TRAIN_SEED:-0}"
 python="${PYTHON:-/usr/bin/python3}"
 rm -rf "$out"
 mkdir -p "$out"
@@ -51,7 +52,7 @@ json.dump({"crs": "EPSG:%d" % g["epsg"], "epsg": g["epsg"],
 PY
 "$ddhgs" -q partition "$scene" --blocks "$grid" --overlap 0.2 --out "$out/blocks"
 timed single "$ddhgs" -q train "$scene" --out "$out/single" --preset "$preset" \
-  --iterations "$iterations" --checkpoint-every 0
+  --iterations "$iterations" --seed "$train_seed" --checkpoint-every 0
 total=$("$ddhgs" info "$scene" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
 for block in "$out"/blocks/block_*; do
   name="$(basename "$block")"
@@ -59,7 +60,7 @@ for block in "$out"/blocks/block_*; do
   block_iterations=$(( (iterations * train_views + total / 2) / total ))
   echo "$name: $train_views of $total training views, $block_iterations iterations"
   timed "$name" "$ddhgs" -q train "$block" --out "$block/run" --preset "$preset" \
-    --iterations "$block_iterations" --checkpoint-every 0
+    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0
 done
 "$ddhgs" merge "$out/blocks" --out "$out/merged"
 "$ddhgs" -q merge "$out/blocks" --out "$out/merged-cut" --seam-blend 0
