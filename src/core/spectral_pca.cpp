@@ -71,13 +71,32 @@ torch::Tensor band_noise_sigma(const torch::Tensor& image) {
   const torch::Tensor right = x.slice(1, 1, x.size(1)).reshape({-1, x.size(2)});
   const torch::Tensor left = x.slice(1, 0, x.size(1) - 1).reshape({-1, x.size(2)});
   const torch::Tensor diff = (right - left).abs();
+  const torch::Tensor level = right + left;
   // Two black neighbours (a backdrop masked to 0, noise clipped there) show
   // no noise: on a view that is mostly backdrop they would make the median 0.
   const torch::Tensor live = (right != 0) | (left != 0);
+  const double to_sigma = 1 / (0.6745 * std::sqrt(2.0));
   torch::Tensor sigma = torch::zeros({x.size(2)}, torch::kFloat64);
   for (int64_t n = 0; n < x.size(2); ++n) {
-    const torch::Tensor d = diff.select(1, n).masked_select(live.select(1, n));
-    if (d.numel() > 0) sigma[n] = std::get<0>(d.median(0)) / (0.6745 * std::sqrt(2.0));
+    const torch::Tensor mask = live.select(1, n);
+    const torch::Tensor d = diff.select(1, n).masked_select(mask);
+    const int64_t m = d.numel();
+    if (m == 0) continue;
+    // Shot noise grows with the signal: the median pair of a view that is
+    // mostly dim backdrop would give the backdrop's level, several times
+    // below the lit object's. The pairs sorted by level into kNoiseLevels
+    // equal shares, the median in each, and their root mean square: the
+    // noise the view's pixels carry on average (white noise: the median).
+    const int64_t shares = m >= 16 * kNoiseLevels ? kNoiseLevels : 1;
+    const torch::Tensor sorted =
+        d.index_select(0, level.select(1, n).masked_select(mask).argsort());
+    double sum = 0;
+    for (int64_t i = 0; i < shares; ++i) {
+      const torch::Tensor share = sorted.slice(0, i * m / shares, (i + 1) * m / shares);
+      const double s = std::get<0>(share.median(0)).item<double>() * to_sigma;
+      sum += s * s;
+    }
+    sigma[n] = std::sqrt(sum / double(shares));
   }
   return sigma;
 }

@@ -39,9 +39,13 @@ SpectralPca spectral_pca(const torch::Tensor& spectra);
 
 // Per-band noise level of an image [H, W, N] (W >= 2): the median absolute
 // difference of horizontally adjacent pixels over 0.6745 sqrt(2), the
-// standard deviation of white noise, robust to the image's edges; pairs of
-// two samples exactly 0 (a black backdrop) are left out. [N] float64.
+// standard deviation of white noise, robust to the image's edges. Noise
+// that grows with the signal (shot noise) is measured at every level: the
+// pairs sorted by their level into kNoiseLevels equal shares, the median in
+// each, and the root mean square of those. Pairs of two
+// samples exactly 0 (a black backdrop) are left out. [N] float64.
 torch::Tensor band_noise_sigma(const torch::Tensor& image);
+constexpr int64_t kNoiseLevels = 8;
 
 // The signal's rank however uneven the noise is across bands: the spectra
 // with each band divided by its noise level (noise then has variance 1 in
