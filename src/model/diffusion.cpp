@@ -355,7 +355,16 @@ torch::Tensor denoise_view(const Denoiser& denoiser, const torch::Tensor& render
   };
   if (!denoiser.subspace) return run(render);
   const torch::Tensor coeffs = denoiser.subspace->encode(render);
-  return denoiser.subspace->apply(render, coeffs, run(coeffs)).clamp(0.0, 1.0);
+  return keep_spectral_direction(render, denoiser.subspace->apply(render, coeffs, run(coeffs)))
+      .clamp(0.0, 1.0);
+}
+
+torch::Tensor keep_spectral_direction(const torch::Tensor& render, const torch::Tensor& corrected) {
+  TORCH_CHECK(render.sizes() == corrected.sizes(), "keep_spectral_direction: ", render.sizes(),
+              " and ", corrected.sizes(), " differ");
+  const torch::Tensor dot = (render * corrected).sum(-1, true);
+  const torch::Tensor norm = (render * render).sum(-1, true);
+  return render * torch::where(norm > 0, dot / norm.clamp_min(1e-30), torch::zeros_like(norm));
 }
 
 void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& key,

@@ -113,8 +113,9 @@ TEST(SpectralSubspace, AnUntrainedDenoiserInASubspaceReturnsTheRender) {
   o.steps = 1;
   EXPECT_LT((model::denoise_view(d, render, o) - render).abs().max().item<double>(), 1e-5);
 
-  // A live network's change is one of the subspace: nothing moves off it
-  // where the output is not clamped to [0, 1].
+  // A live network's change is the subspace change projected onto each
+  // pixel's own spectrum: the render scaled per pixel (its spectral angle
+  // kept) where the output is not clamped to [0, 1].
   d.unet = test::live_unet(test::tiny_unet_options(2), 5);
   {
     torch::NoGradGuard no_grad;  // a gentler correction: fewer pixels clamped
@@ -126,9 +127,29 @@ TEST(SpectralSubspace, AnUntrainedDenoiserInASubspaceReturnsTheRender) {
   ASSERT_GT(inside.sum().item<int64_t>(), 40);
   const auto change = (denoised - render).index({inside});  // [M, 9]
   EXPECT_GT(change.abs().max().item<double>(), 1e-3);
-  const auto basis = s.basis;
-  const auto off_subspace = change - torch::matmul(torch::matmul(change, basis), basis.t());
-  EXPECT_LT(off_subspace.abs().max().item<double>(), 1e-5);
+  const auto coeffs = s.encode(render);
+  torch::Tensor in_subspace;
+  {
+    const auto out = model::sample(model::as_predictor(d), d.schedule,
+                                   coeffs.permute({2, 0, 1}).unsqueeze(0).contiguous(), o)
+                         .squeeze(0)
+                         .permute({1, 2, 0});
+    in_subspace = s.apply(render, coeffs, out);
+  }
+  const auto r = render.index({inside});
+  const auto gain = (r * in_subspace.index({inside})).sum(-1, true) / (r * r).sum(-1, true);
+  EXPECT_LT((change - r * (gain - 1)).abs().max().item<double>(), 1e-5);
+}
+
+// The projection by hand: a pixel (3, 4) corrected to (4, 3) keeps the
+// direction (0.6, 0.8) at length 4.8 (the corrected pixel's component along
+// it); a black pixel stays black whatever its correction.
+TEST(SpectralSubspace, KeepingTheSpectralDirectionIsAGainPerPixel) {
+  const auto render = torch::tensor({{3.0f, 4.0f}, {0.0f, 0.0f}});
+  const auto corrected = torch::tensor({{4.0f, 3.0f}, {0.5f, 0.2f}});
+  const auto kept = model::keep_spectral_direction(render, corrected);
+  EXPECT_TRUE(torch::allclose(kept, torch::tensor({{2.88f, 3.84f}, {0.0f, 0.0f}}), 1e-6, 1e-6))
+      << kept;
 }
 
 // The denoiser written to dir/name under the key "denoiser", read back.
