@@ -14,8 +14,9 @@
 #
 # Environment: DDHGS (default build/ddhgs), VIEWS (48), LINES (4), WIDTH
 # (96), HEIGHT (72), ITERATIONS (of the single run; 3000), PRESET (demo),
-# BLOCKS (2x2), SEED (of the flight; 0), TRAIN_SEED (of every training; 0), PYTHON (a python3 with numpy;
-# default /usr/bin/python3; gdal_translate reads the orthomosaics).
+# BLOCKS (2x2), SEED (of the flight; 0), TRAIN_SEED (of every training; 0),
+# PYTHON (a python3 with numpy; default /usr/bin/python3; gdal_translate
+# reads the orthomosaics).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ddhgs="$(realpath "${DDHGS:-build/ddhgs}")"

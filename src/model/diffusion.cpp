@@ -363,8 +363,9 @@ torch::Tensor keep_spectral_direction(const torch::Tensor& render, const torch::
   TORCH_CHECK(render.sizes() == corrected.sizes(), "keep_spectral_direction: ", render.sizes(),
               " and ", corrected.sizes(), " differ");
   const torch::Tensor dot = (render * corrected).sum(-1, true);
-  const torch::Tensor norm = (render * render).sum(-1, true);
-  return render * torch::where(norm > 0, dot / norm.clamp_min(1e-30), torch::zeros_like(norm));
+  // A black pixel has dot 0: its gain is 0 / 1e-30, and it stays black.
+  const torch::Tensor norm = (render * render).sum(-1, true).clamp_min(1e-30);
+  return render * (dot / norm);
 }
 
 void save_denoiser(torch::serialize::OutputArchive& archive, const std::string& key,

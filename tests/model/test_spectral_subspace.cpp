@@ -127,15 +127,13 @@ TEST(SpectralSubspace, AnUntrainedDenoiserInASubspaceReturnsTheRender) {
   ASSERT_GT(inside.sum().item<int64_t>(), 40);
   const auto change = (denoised - render).index({inside});  // [M, 9]
   EXPECT_GT(change.abs().max().item<double>(), 1e-3);
+  // The same draw as denoise_view's, its subspace change unprojected.
   const auto coeffs = s.encode(render);
-  torch::Tensor in_subspace;
-  {
-    const auto out = model::sample(model::as_predictor(d), d.schedule,
-                                   coeffs.permute({2, 0, 1}).unsqueeze(0).contiguous(), o)
-                         .squeeze(0)
-                         .permute({1, 2, 0});
-    in_subspace = s.apply(render, coeffs, out);
-  }
+  const auto sampled = model::sample(model::as_predictor(d), d.schedule,
+                                     coeffs.permute({2, 0, 1}).unsqueeze(0).contiguous(), o)
+                           .squeeze(0)
+                           .permute({1, 2, 0});
+  const auto in_subspace = s.apply(render, coeffs, sampled);
   const auto r = render.index({inside});
   const auto gain = (r * in_subspace.index({inside})).sum(-1, true) / (r * r).sum(-1, true);
   EXPECT_LT((change - r * (gain - 1)).abs().max().item<double>(), 1e-5);
