@@ -20,9 +20,10 @@ done
 
 # colmap: `ddhgs process` runs it (structure from motion on pseudo-RGB views).
 # libgdal-dev: `render --ortho` writes Cloud-Optimised GeoTIFFs through GDAL.
+# libzbar-dev: `process --panel` reads the calibration panel's QR label.
 packages=(build-essential cmake ninja-build pkg-config libtorch-dev libopenblas0-pthread
           nlohmann-json3-dev libcli11-dev libstb-dev libtiff-dev libpng-dev libjpeg-dev
-          libgdal-dev libgtest-dev libbenchmark-dev colmap)
+          libgdal-dev libzbar-dev libgtest-dev libbenchmark-dev colmap)
 if [ "$with_tests" = 1 ]; then
   # Independent cross-checks in tests: numpy for metrics and .npy files,
   # PyTorch for .pt files written by torch.save; headless Chromium opens the

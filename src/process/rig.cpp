@@ -49,7 +49,8 @@ void write_reference_pngs(const std::vector<std::pair<std::string, torch::Tensor
 }
 
 // A band image as an 8-bit picture (0 to its 99.5th percentile), the panel
-// region's outline drawn in red where there is one.
+// region's outline drawn in red where there is one, and the QR label that
+// placed it (if one did) in blue.
 void write_panel_picture(const fs::path& path, const torch::Tensor& counts,
                          const io::PanelRegion* region) {
   const torch::Tensor flat = counts.flatten().slice(0, 0, -1, 3).to(torch::kFloat);
@@ -66,6 +67,26 @@ void write_panel_picture(const fs::path& path, const torch::Tensor& counts,
     rgb.select(2, 0).masked_fill_(edge, 255);
     rgb.select(2, 1).masked_fill_(edge, 0);
     rgb.select(2, 2).masked_fill_(edge, 0);
+  }
+  if (region && !region->label.empty()) {
+    // The QR label that placed it: its outline in blue.
+    const int64_t height = rgb.size(0), width = rgb.size(1);
+    uint8_t* p = rgb.data_ptr<uint8_t>();
+    for (size_t i = 0; i < 4; ++i) {
+      const auto& a = region->label_corners[i];
+      const auto& b = region->label_corners[(i + 1) % 4];
+      const int steps = int(2 * std::hypot(b[0] - a[0], b[1] - a[1])) + 1;
+      for (int t = 0; t <= steps; ++t) {
+        const double x = a[0] + (b[0] - a[0]) * t / steps, y = a[1] + (b[1] - a[1]) * t / steps;
+        for (int64_t dy = -1; dy <= 1; ++dy)
+          for (int64_t dx = -1; dx <= 1; ++dx) {
+            const int64_t px = std::lround(x) + dx, py = std::lround(y) + dy;
+            if (px < 0 || py < 0 || px >= width || py >= height) continue;
+            uint8_t* rgb_at = p + 3 * (py * width + px);
+            rgb_at[0] = 0, rgb_at[1] = 0, rgb_at[2] = 255;
+          }
+      }
+    }
   }
   io::write_png(path, rgb);
 }
@@ -204,7 +225,10 @@ ProcessResult process_rig(const RigProcessOptions& options) {
       std::snprintf(line, sizeof line,
                     "process: panel in %s: %s region, %lld px, raw mean %.1f (spread %.1f), "
                     "radiance %.6g, irradiance %.6g W/m2/nm",
-                    c.panel_file.filename().string().c_str(), c.region.found ? "found" : "given",
+                    c.panel_file.filename().string().c_str(),
+                    !c.region.found          ? "given"
+                    : c.region.label.empty() ? "found"
+                                             : ("label " + c.region.label + " placed").c_str(),
                     (long long)c.region.pixels, c.raw_mean, c.raw_spread, c.panel_radiance,
                     c.irradiance);
       core::log_info(line);
@@ -373,10 +397,18 @@ ProcessResult process_rig(const RigProcessOptions& options) {
       if (c.source == "panel") {
         nlohmann::json corners = nlohmann::json::array();
         for (const auto& corner : c.region.corners) corners.push_back({corner[0], corner[1]});
+        if (!c.region.label.empty()) {
+          nlohmann::json label_corners = nlohmann::json::array();
+          for (const auto& corner : c.region.label_corners)
+            label_corners.push_back({corner[0], corner[1]});
+          entry["panel_label"] = {{"serial", c.region.label}, {"corners_xy", label_corners}};
+        }
         entry["panel_albedo"] = c.albedo;
         entry["panel_radiance"] = c.panel_radiance;
         entry["panel"] = {{"file", fs::absolute(c.panel_file).string()},
-                          {"region", c.region.found ? "found" : "given (--panel-region)"},
+                          {"region", !c.region.found          ? "given (--panel-region)"
+                                     : c.region.label.empty() ? "found"
+                                                              : "placed from its QR label"},
                           {"corners_xy", corners},
                           {"pixels", c.region.pixels},
                           {"panel_side_px", c.region.panel_side_px},

@@ -10,7 +10,9 @@
 #include <cmath>
 #include <cstdio>
 
+#include "core/distortion.h"
 #include "io/rig/panel_finder.h"
+#include "io/rig/panel_label.h"
 #include "io/rig/rig_capture.h"
 #include "io/rig/rig_radiometry.h"
 #include "support/test_support.h"
@@ -30,19 +32,20 @@ RigCapture panel_capture() {
   return capture;
 }
 
-// Whether (x, y) lies inside the convex quadrilateral `corners` (either winding).
-bool inside(const std::array<std::array<double, 2>, 4>& corners, double x, double y) {
-  int sign = 0;
-  for (int i = 0; i < 4; ++i) {
-    const auto& a = corners[size_t(i)];
-    const auto& b = corners[size_t((i + 1) % 4)];
+// How far (x, y) lies inside the convex quadrilateral `corners` (either
+// winding): its least distance to an edge's line, negative outside.
+double depth_inside(const std::array<std::array<double, 2>, 4>& corners, double x, double y) {
+  double area2 = 0;
+  for (size_t i = 0; i < 4; ++i)
+    area2 += corners[i][0] * corners[(i + 1) % 4][1] - corners[(i + 1) % 4][0] * corners[i][1];
+  double depth = 1e300;
+  for (size_t i = 0; i < 4; ++i) {
+    const auto& a = corners[i];
+    const auto& b = corners[(i + 1) % 4];
     const double cross = (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]);
-    const int s = cross > 0 ? 1 : (cross < 0 ? -1 : 0);
-    if (s == 0) continue;
-    if (sign == 0) sign = s;
-    if (s != sign) return false;
+    depth = std::min(depth, (area2 > 0 ? cross : -cross) / std::hypot(b[0] - a[0], b[1] - a[1]));
   }
-  return true;
+  return depth;
 }
 
 TEST(MicasenseSample, CameraInPixelsFromOlderFirmware) {
@@ -88,6 +91,7 @@ TEST(MicasenseSample, PanelFoundInEveryBandMatchesTheReference) {
     const ReflectanceCalibration& c = panel[i];
     SCOPED_TRACE("band " + std::to_string(i + 1));
     EXPECT_TRUE(c.region.found);
+    EXPECT_EQ(c.region.label, "RP02-1603036-SC");  // placed from the QR label
     EXPECT_EQ(c.saturated, 0);
     EXPECT_NEAR(c.raw_mean / raw[i], 1, 0.005);
     EXPECT_NEAR(c.panel_radiance / radiance[i], 1, 0.005);
@@ -99,20 +103,52 @@ TEST(MicasenseSample, PanelFoundInEveryBandMatchesTheReference) {
         c.panel_radiance, 100 * (c.panel_radiance / radiance[i] - 1), c.irradiance,
         100 * (c.irradiance / irradiance[i] - 1));
   }
-  // Band 1: every pixel measured lies inside MicaSense's panel corners (its
-  // region is placed from the QR code, a few pixels off the panel's centre;
-  // ours is the panel's middle two thirds).
-  const std::array<std::array<double, 2>, 4> reference = {
-      std::array<double, 2>{809, 613}, {648, 615}, {646, 454}, {808, 452}};
+  // Band 1, compared in MicaSense's frame. Its library places the region
+  // from the QR label in the undistorted image, whose camera is OpenCV's
+  // getOptimalNewCameraMatrix with alpha 1: the pinhole camera whose frame
+  // just holds the undistorted 9 x 9 grid of points spanning the image. The
+  // reference corners are mapped from there into the raw image (through our
+  // lens model) and ours compared with them.
+  const RigBandImage& blue = capture.bands[0];
+  const core::Intrinsics lens = rig_intrinsics(blue);
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  for (int i = 0; i < 9; ++i)
+    for (int j = 0; j < 9; ++j) {
+      const double u = j * double(blue.width - 1) / 8, v = i * double(blue.height - 1) / 8;
+      const core::Point2 p =
+          core::undistort(lens, {(u - lens.cx) / lens.fx, (v - lens.cy) / lens.fy});
+      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y),
+      y1 = std::max(y1, p.y);
+    }
+  const double fx = double(blue.width - 1) / (x1 - x0), fy = double(blue.height - 1) / (y1 - y0);
+  const double cx = -fx * x0, cy = -fy * y0;
+  std::printf("MicaSense's frame: focal %.2f %.2f px, principal point (%.2f, %.2f)\n", fx, fy, cx,
+              cy);
+  const double corners_there[4][2] = {{646, 454}, {808, 452}, {809, 613}, {648, 615}};
+  std::array<std::array<double, 2>, 4> reference;
+  for (size_t i = 0; i < 4; ++i) {
+    const core::Point2 d =
+        core::distort(lens, {(corners_there[i][0] - cx) / fx, (corners_there[i][1] - cy) / fy});
+    reference[i] = {lens.fx * d.x + lens.cx, lens.fy * d.y + lens.cy};
+  }
+  EXPECT_EQ(panel[0].region.label, "RP02-1603036-SC");
+  for (size_t i = 0; i < 4; ++i) {
+    const auto& ours = panel[0].region.corners[i];
+    const double apart = std::hypot(ours[0] - reference[i][0], ours[1] - reference[i][1]);
+    std::printf(
+        "band 1 corner (%.1f, %.1f), MicaSense's (%.1f, %.1f) in this frame: %.1f px apart\n",
+        ours[0], ours[1], reference[i][0], reference[i][1], apart);
+    EXPECT_LT(apart, 5.0);
+  }
+  // Every pixel measured lies inside them, to within half a pixel (MicaSense's
+  // corners are whole pixels).
   const torch::Tensor at = panel[0].region.mask.nonzero();
-  int64_t outside = 0;
+  double deepest_out = 0;
   for (int64_t i = 0; i < at.size(0); ++i)
-    outside +=
-        !inside(reference, double(at[i][1].item<int64_t>()), double(at[i][0].item<int64_t>()));
-  EXPECT_EQ(outside, 0);
-  EXPECT_GT(panel[0].region.pixels, 0.75 * 26005 * 0.8);  // most of MicaSense's ~26,000
-  for (const auto& corner : panel[0].region.corners)
-    std::printf("band 1 region corner (%.0f, %.0f)\n", corner[0], corner[1]);
+    deepest_out = std::min(deepest_out, depth_inside(reference, double(at[i][1].item<int64_t>()),
+                                                     double(at[i][0].item<int64_t>())));
+  std::printf("band 1: no pixel more than %.2f px outside MicaSense's corners\n", -deepest_out);
+  EXPECT_GT(deepest_out, -0.5);
 }
 
 TEST(MicasenseSample, NoPanelWhereThePanelIsCovered) {
@@ -128,6 +164,41 @@ TEST(MicasenseSample, NoPanelWhereThePanelIsCovered) {
   EXPECT_FALSE(none.has_value()) << "found at (" << none->corners[0][0] << ", "
                                  << none->corners[0][1] << ") - (" << none->corners[2][0] << ", "
                                  << none->corners[2][1] << ")";
+}
+
+TEST(MicasenseSample, LabelPlacesTheRegionOnlyWhereItIsRead) {
+  const RigBandImage blue = read_rig_band_image(kSample / "IMG_0000_1.tif");
+  const core::Intrinsics lens = rig_intrinsics(blue);
+  torch::Tensor signal = band_signal(blue, read_band_counts(blue));
+  const std::optional<PanelRegion> placed = find_labelled_panel(signal, lens);
+  ASSERT_TRUE(placed.has_value());
+  EXPECT_EQ(placed->label, "RP02-1603036-SC");
+  EXPECT_LT(placed->spread, 0.03);  // the panel: 2.2 % with the lens's vignetting
+  // The label's corners, in the raw image, around the code (MicaSense's,
+  // in its undistorted frame: (460, 599), (583, 599), (584, 478), (462, 477)).
+  double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+  for (const auto& c : placed->label_corners)
+    x0 = std::min(x0, c[0]), x1 = std::max(x1, c[0]), y0 = std::min(y0, c[1]),
+    y1 = std::max(y1, c[1]);
+  EXPECT_NEAR(x0, 458, 3);
+  EXPECT_NEAR(x1, 582, 3);
+  EXPECT_NEAR(y0, 476, 3);
+  EXPECT_NEAR(y1, 601, 3);
+  // The panel painted over by the tarmac beside it: the label still places
+  // the region, which now holds tarmac: darker than the finder asks of a panel.
+  torch::Tensor covered = signal.clone();
+  const torch::Tensor tarmac = signal.slice(0, 100, 300).slice(1, 100, 300).clone();
+  for (int64_t y : {400, 480})
+    for (int64_t x : {600, 660}) covered.slice(0, y, y + 200).slice(1, x, x + 200).copy_(tarmac);
+  const std::optional<PanelRegion> on_tarmac = find_labelled_panel(covered, lens);
+  ASSERT_TRUE(on_tarmac.has_value());
+  EXPECT_LT(covered.masked_select(on_tarmac->mask).mean().item<double>(),
+            0.25 * signal.masked_select(placed->mask).mean().item<double>());
+  // The label painted over: no label read, nothing placed.
+  torch::Tensor unlabelled = signal.clone();
+  unlabelled.slice(0, 440, 640).slice(1, 420, 620).copy_(tarmac);
+  EXPECT_FALSE(find_labelled_panel(unlabelled, lens).has_value());
+  EXPECT_TRUE(find_panel(unlabelled).has_value());  // the panel itself is still found
 }
 
 }  // namespace

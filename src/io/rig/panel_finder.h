@@ -31,6 +31,11 @@ struct PanelRegion {
   int64_t pixels = 0;
   double panel_side_px = 0;  // the whole panel's side, sqrt of its area (0: given)
   bool found = true;         // false: the region was given (--panel-region)
+  // Placed from the panel's QR label (io/rig/panel_label.h): its serial and
+  // the code's corners (x, y pixels); empty label: not placed from one.
+  std::string label;
+  std::array<std::array<double, 2>, 4> label_corners{};
+  double spread = 0;  // the signal's spread over its mean in the region (label placement)
 };
 
 // signal: [H, W] float, counts above the black level. nullopt when no panel

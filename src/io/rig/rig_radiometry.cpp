@@ -7,10 +7,39 @@
 #include "core/error.h"
 #include "core/text.h"
 #include "io/cube/cube.h"
+#include "io/rig/panel_label.h"
 
 namespace ddhgs::io {
 
 namespace {
+
+// A region a panel label places is taken when the signal in it spreads less
+// than this over its mean (the maker's panels: 2-3 % with the lens's
+// vignetting; half on the panel, half on the ground: 30 % or more).
+constexpr double kLabelledPanelSpread = 0.05;
+// ... and with no panel found, when its mean is at least this share of the
+// image's bright end (its 99.5th percentile), as the finder asks of a panel.
+constexpr double kPanelBrightShare = 0.25;
+
+// The band camera as far as a panel capture says: its lens where the
+// metadata gives one; otherwise (geometry is not needed for radiometry) the
+// image taken as a pinhole one, in which a label's layout applies as well.
+core::Intrinsics panel_lens(const RigBandImage& image) {
+  try {
+    return rig_intrinsics(image);
+  } catch (const core::Error&) {
+    core::Intrinsics pinhole;
+    pinhole.fx = pinhole.fy = 1;
+    pinhole.width = int(image.width), pinhole.height = int(image.height);
+    return pinhole;
+  }
+}
+
+double bright_end(const torch::Tensor& signal) {
+  const torch::Tensor flat = signal.flatten();
+  const int64_t rank = std::max<int64_t>(1, int64_t(0.995 * double(flat.numel())));
+  return std::get<0>(flat.kthvalue(rank)).item<double>();
+}
 
 // R(y) as [H, 1]: the row-dependent readout correction.
 torch::Tensor row_correction(const RigBandImage& image) {
@@ -123,6 +152,19 @@ std::vector<ReflectanceCalibration> panel_calibration(const RigCapture& panel,
       if (!(signal.max().item<double>() > 0))
         throw core::Error(image.file, "the panel capture reads no signal above the black level");
       std::optional<PanelRegion> region = find_panel(signal);
+      // A MicaSense label places the region the maker's library measures. It
+      // is taken when that region is as even as a panel and as bright as the
+      // panel found (or, with none found, as bright as the finder asks a
+      // panel to be); otherwise (a label misread, a layout not known) the
+      // panel as found.
+      if (std::optional<PanelRegion> placed = find_labelled_panel(signal, panel_lens(image))) {
+        const double placed_level = signal.masked_select(placed->mask).mean().item<double>();
+        const double level = region ? signal.masked_select(region->mask).mean().item<double>()
+                                    : kPanelBrightShare * bright_end(signal);
+        const bool as_bright =
+            region ? std::abs(placed_level / level - 1) < 0.1 : placed_level >= level;
+        if (placed->spread < kLabelledPanelSpread && as_bright) region = std::move(placed);
+      }
       if (!region)
         throw PanelNotFound(image,
                             "no calibration panel found (an even, bright square; the QR label "
