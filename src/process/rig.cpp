@@ -223,12 +223,12 @@ ProcessResult process_rig(const RigProcessOptions& options) {
     for (const io::ReflectanceCalibration& c : panel) {
       char line[240];
       std::snprintf(line, sizeof line,
-                    "process: panel in %s: %s region, %lld px, raw mean %.1f (spread %.1f), "
+                    "process: panel in %s: region %s, %lld px, raw mean %.1f (spread %.1f), "
                     "radiance %.6g, irradiance %.6g W/m2/nm",
                     c.panel_file.filename().string().c_str(),
                     !c.region.found          ? "given"
                     : c.region.label.empty() ? "found"
-                                             : ("label " + c.region.label + " placed").c_str(),
+                                             : ("placed by label " + c.region.label).c_str(),
                     (long long)c.region.pixels, c.raw_mean, c.raw_spread, c.panel_radiance,
                     c.irradiance);
       core::log_info(line);
@@ -411,12 +411,14 @@ ProcessResult process_rig(const RigProcessOptions& options) {
                                                               : "placed from its QR label"},
                           {"corners_xy", corners},
                           {"pixels", c.region.pixels},
-                          {"panel_side_px", c.region.panel_side_px},
                           {"raw_mean", c.raw_mean},
                           {"raw_spread", c.raw_spread},
                           {"saturated_pixels", c.saturated},
                           {"irradiance", c.irradiance},
                           {"picture", "panel/" + c.panel_file.stem().string() + ".png"}};
+        // The whole panel's side where the finder measured it (a placed or
+        // given region says nothing of the panel around it).
+        if (c.region.panel_side_px > 0) entry["panel"]["panel_side_px"] = c.region.panel_side_px;
       } else {
         entry["dls_irradiance_tag"] = b.radiometry.irradiance_tag;
         entry["dls_correction"] = b.radiometry.irradiance_correction;
