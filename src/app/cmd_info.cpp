@@ -337,6 +337,56 @@ int describe_rig(const std::string& dir, bool as_json) {
       !no_radiance.empty() ? "no (no radiance)"
       : no_dls.empty()     ? "from the DLS in every capture, or a panel capture (--panel)"
                            : "needs a panel capture (--panel): no DLS irradiance in " + no_dls;
+  // A folder of one or two captures may be a panel capture: where each
+  // band's panel lies (io::locate_panel, as process --panel finds it).
+  nlohmann::json panels = nlohmann::json::array();
+  std::vector<std::string> panel_lines;
+  if (captures.size() < 3 && no_radiance.empty())
+    for (const io::RigCapture& c : captures) {
+      nlohmann::json per_band = nlohmann::json::array();
+      int placed = 0, found = 0;
+      int64_t fewest = 0, most = 0;
+      std::string label, missing;
+      for (const io::RigBandImage& b : c.bands) {
+        const std::optional<io::PanelRegion> region =
+            io::locate_panel(b, io::band_signal(b, io::read_band_counts(b)));
+        if (!region) {
+          missing += (missing.empty() ? "" : ", ") + b.band_name;
+          per_band.push_back({{"band", b.band_name}, {"region", "none"}});
+          continue;
+        }
+        (region->label.empty() ? found : placed) += 1;
+        if (!region->label.empty()) label = region->label;
+        fewest = fewest == 0 ? region->pixels : std::min(fewest, region->pixels);
+        most = std::max(most, region->pixels);
+        per_band.push_back(
+            {{"band", b.band_name},
+             {"region", region->label.empty() ? "found" : "placed from its QR label"},
+             {"label", region->label},
+             {"pixels", region->pixels}});
+      }
+      // Named by its files (IMG_0000_*), which a person sees, not its capture id.
+      std::string files = c.bands.front().file.stem().string();
+      if (const size_t cut = files.rfind('_'); cut != std::string::npos && cut > 0)
+        files = files.substr(0, cut) + "_*";
+      panels.push_back({{"capture", c.id}, {"files", files}, {"bands", per_band}});
+      const int bands_with = placed + found, all = int(c.bands.size());
+      std::string line = files + ": ";
+      if (bands_with == 0) {
+        line += "no panel in any band";
+      } else {
+        if (placed > 0)
+          line += "placed by label " + label + " in " + std::to_string(placed) + " of " +
+                  std::to_string(all) + " bands";
+        if (found > 0)
+          line += std::string(placed > 0 ? ", " : "") + "found in " + std::to_string(found) +
+                  " of " + std::to_string(all) + " bands";
+        line += " (" + std::to_string(fewest) +
+                (most > fewest ? "-" + std::to_string(most) : std::string()) + " px)";
+        if (!missing.empty()) line += "; none in " + missing;
+      }
+      panel_lines.push_back(line);
+    }
   if (as_json) {
     nlohmann::json ids = nlohmann::json::array();
     for (const io::RigCapture& c : captures) ids.push_back(c.id);
@@ -345,7 +395,8 @@ int describe_rig(const std::string& dir, bool as_json) {
                                 {"captures", ids},
                                 {"cameras", cameras},
                                 {"radiance", no_radiance.empty()},
-                                {"reflectance", reflectance}}
+                                {"reflectance", reflectance},
+                                {"panels", panels}}
                      .dump(2)
               << "\n";
     return 0;
@@ -390,6 +441,8 @@ int describe_rig(const std::string& dir, bool as_json) {
   }
   std::cout << "radiance    " << radiance << "\n"
             << "reflectance " << reflectance << "\n";
+  for (size_t i = 0; i < panel_lines.size(); ++i)
+    std::cout << (i == 0 ? "panel       " : "            ") << panel_lines[i] << "\n";
   if (captures.size() < 3)
     std::cout << "  next: " << captures.size()
               << " capture(s) cannot be posed; a panel capture goes to ddhgs process FLIGHT --rig "

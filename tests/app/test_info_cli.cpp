@@ -245,11 +245,35 @@ TEST(InfoCli, DescribesRigCaptures) {
       << out;
   EXPECT_TRUE(contains(out, "radiance    every band image")) << out;
   EXPECT_TRUE(contains(out, "reflectance from the DLS in every capture")) << out;
+  // One capture: maybe a panel capture; a flat grey frame holds no panel.
+  EXPECT_TRUE(contains(out, "panel       IMG_0000_*: no panel in any band")) << out;
 
   fs::remove(root / "0000SET" / "000" / "IMG_0001_3.tif");
   EXPECT_EQ(info(root.string(), &out), 1);
   EXPECT_TRUE(contains(out, "capture capture1 has no image from band camera 3 (Red")) << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+}
+
+// MicaSense's sample panel capture (tests/data/micasense-sample, MIT):
+// `info` says where the panel lies in each band, as `process --panel` would
+// find it.
+TEST(InfoCli, FindsThePanelOfAPanelCapture) {
+  const fs::path sample = fs::path(DDHGS_SOURCE_DIR) / "tests/data/micasense-sample/0000SET/000";
+  std::string out;
+  ASSERT_EQ(info(sample.string(), &out), 0) << out;
+  EXPECT_TRUE(
+      contains(out, "panel       IMG_0000_*: placed by label RP02-1603036-SC in 5 of 5 bands"))
+      << out;
+  ASSERT_EQ(info(sample.string() + " --json", &out), 0) << out;
+  const auto j = nlohmann::json::parse(out);
+  ASSERT_EQ(j["panels"].size(), 1u);
+  EXPECT_EQ(j["panels"][0]["files"], "IMG_0000_*");
+  ASSERT_EQ(j["panels"][0]["bands"].size(), 5u);
+  for (const auto& band : j["panels"][0]["bands"]) {
+    EXPECT_EQ(band["region"], "placed from its QR label") << band;
+    EXPECT_EQ(band["label"], "RP02-1603036-SC") << band;
+    EXPECT_GT(band["pixels"].get<int64_t>(), 26000) << band;
+  }
 }
 
 }  // namespace

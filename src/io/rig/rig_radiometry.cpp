@@ -110,6 +110,24 @@ torch::Tensor band_signal(const RigBandImage& image, const torch::Tensor& counts
   return (counts.to(torch::kFloat) - float(image.radiometry.black_level)).clamp_min(0.0f);
 }
 
+std::optional<PanelRegion> locate_panel(const RigBandImage& image, const torch::Tensor& signal) {
+  std::optional<PanelRegion> region = find_panel(signal);
+  // A MicaSense label places the region the maker's library measures. It
+  // is taken when that region is as even as a panel and as bright as the
+  // panel found (or, with none found, as bright as the finder asks a
+  // panel to be); otherwise (a label misread, a layout not known) the
+  // panel as found.
+  if (std::optional<PanelRegion> placed = find_labelled_panel(signal, panel_lens(image))) {
+    const double placed_level = signal.masked_select(placed->mask).mean().item<double>();
+    const double level = region ? signal.masked_select(region->mask).mean().item<double>()
+                                : kPanelBrightShare * bright_end(signal);
+    const bool as_bright =
+        region ? std::abs(placed_level / level - 1) < 0.1 : placed_level >= level;
+    if (placed->spread < kLabelledPanelSpread && as_bright) region = std::move(placed);
+  }
+  return region;
+}
+
 std::vector<ReflectanceCalibration> panel_calibration(const RigCapture& panel,
                                                       const std::vector<RigBandImage>& cameras,
                                                       const std::vector<double>& albedo,
@@ -151,20 +169,7 @@ std::vector<ReflectanceCalibration> panel_calibration(const RigCapture& panel,
       const torch::Tensor signal = band_signal(image, counts);
       if (!(signal.max().item<double>() > 0))
         throw core::Error(image.file, "the panel capture reads no signal above the black level");
-      std::optional<PanelRegion> region = find_panel(signal);
-      // A MicaSense label places the region the maker's library measures. It
-      // is taken when that region is as even as a panel and as bright as the
-      // panel found (or, with none found, as bright as the finder asks a
-      // panel to be); otherwise (a label misread, a layout not known) the
-      // panel as found.
-      if (std::optional<PanelRegion> placed = find_labelled_panel(signal, panel_lens(image))) {
-        const double placed_level = signal.masked_select(placed->mask).mean().item<double>();
-        const double level = region ? signal.masked_select(region->mask).mean().item<double>()
-                                    : kPanelBrightShare * bright_end(signal);
-        const bool as_bright =
-            region ? std::abs(placed_level / level - 1) < 0.1 : placed_level >= level;
-        if (placed->spread < kLabelledPanelSpread && as_bright) region = std::move(placed);
-      }
+      std::optional<PanelRegion> region = locate_panel(image, signal);
       if (!region)
         throw PanelNotFound(image,
                             "no calibration panel found (an even, bright square; the QR label "

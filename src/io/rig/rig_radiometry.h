@@ -64,6 +64,13 @@ struct ReflectanceCalibration {
   double irradiance = 0;
 };
 
+// The panel region in a band image of a panel capture (signal: its counts
+// above the black level, band_signal): placed from a MicaSense QR label
+// where one is read and the region it places is even and bright
+// (io/rig/panel_label.h), else the panel as the finder finds it
+// (io/rig/panel_finder.h). nullopt when neither finds one.
+std::optional<PanelRegion> locate_panel(const RigBandImage& image, const torch::Tensor& signal);
+
 // No panel could be told apart in `image`: the caller may show the image.
 struct PanelNotFound : core::Error {
   PanelNotFound(const RigBandImage& band, const std::string& problem)
