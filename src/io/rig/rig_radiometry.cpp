@@ -117,7 +117,14 @@ std::optional<PanelRegion> locate_panel(const RigBandImage& image, const torch::
   // panel found (or, with none found, as bright as the finder asks a
   // panel to be); otherwise (a label misread, a layout not known) the
   // panel as found.
-  if (std::optional<PanelRegion> placed = find_labelled_panel(signal, panel_lens(image))) {
+  std::optional<PanelRegion> placed;
+  try {
+    placed = find_labelled_panel(signal, panel_lens(image));
+  } catch (const core::Error&) {
+    // A lens model the undistortion cannot invert near the frame's edge:
+    // no label frame, so the panel as found.
+  }
+  if (placed) {
     const double placed_level = signal.masked_select(placed->mask).mean().item<double>();
     const double level = region ? signal.masked_select(region->mask).mean().item<double>()
                                 : kPanelBrightShare * bright_end(signal);
