@@ -359,11 +359,10 @@ int describe_rig(const std::string& dir, bool as_json) {
         if (!region->label.empty()) label = region->label;
         fewest = fewest == 0 ? region->pixels : std::min(fewest, region->pixels);
         most = std::max(most, region->pixels);
-        per_band.push_back(
-            {{"band", b.band_name},
-             {"region", region->label.empty() ? "found" : "placed from its QR label"},
-             {"label", region->label},
-             {"pixels", region->pixels}});
+        per_band.push_back({{"band", b.band_name},
+                            {"region", io::panel_region_source(*region)},
+                            {"label", region->label},
+                            {"pixels", region->pixels}});
       }
       // Named by its files (IMG_0000_*), which a person sees, not its capture id.
       std::string files = c.bands.front().file.stem().string();

@@ -406,9 +406,7 @@ ProcessResult process_rig(const RigProcessOptions& options) {
         entry["panel_albedo"] = c.albedo;
         entry["panel_radiance"] = c.panel_radiance;
         entry["panel"] = {{"file", fs::absolute(c.panel_file).string()},
-                          {"region", !c.region.found          ? "given (--panel-region)"
-                                     : c.region.label.empty() ? "found"
-                                                              : "placed from its QR label"},
+                          {"region", io::panel_region_source(c.region)},
                           {"corners_xy", corners},
                           {"pixels", c.region.pixels},
                           {"raw_mean", c.raw_mean},

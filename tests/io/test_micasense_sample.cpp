@@ -105,23 +105,17 @@ TEST(MicasenseSample, PanelFoundInEveryBandMatchesTheReference) {
   }
   // Band 1, compared in MicaSense's frame. Its library places the region
   // from the QR label in the undistorted image, whose camera is OpenCV's
-  // getOptimalNewCameraMatrix with alpha 1: the pinhole camera whose frame
-  // just holds the undistorted 9 x 9 grid of points spanning the image. The
-  // reference corners are mapped from there into the raw image (through our
-  // lens model) and ours compared with them.
+  // getOptimalNewCameraMatrix with alpha 1 (io::maker_pinhole; the figures
+  // below are numpy's reimplementation of OpenCV's, on this file's lens).
+  // The reference corners are mapped from there into the raw image (through
+  // our lens model) and ours compared with them.
   const RigBandImage& blue = capture.bands[0];
   const core::Intrinsics lens = rig_intrinsics(blue);
-  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
-  for (int i = 0; i < 9; ++i)
-    for (int j = 0; j < 9; ++j) {
-      const double u = j * double(blue.width - 1) / 8, v = i * double(blue.height - 1) / 8;
-      const core::Point2 p =
-          core::undistort(lens, {(u - lens.cx) / lens.fx, (v - lens.cy) / lens.fy});
-      x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y),
-      y1 = std::max(y1, p.y);
-    }
-  const double fx = double(blue.width - 1) / (x1 - x0), fy = double(blue.height - 1) / (y1 - y0);
-  const double cx = -fx * x0, cy = -fy * y0;
+  const core::Intrinsics maker = maker_pinhole(lens);
+  EXPECT_NEAR(maker.fx, 1424.1, 0.1);
+  EXPECT_NEAR(maker.cx, 628.2, 0.1);
+  EXPECT_NEAR(maker.cy, 480.1, 0.1);
+  const double fx = maker.fx, fy = maker.fy, cx = maker.cx, cy = maker.cy;
   std::printf("MicaSense's frame: focal %.2f %.2f px, principal point (%.2f, %.2f)\n", fx, fy, cx,
               cy);
   const double corners_there[4][2] = {{646, 454}, {808, 452}, {809, 613}, {648, 615}};

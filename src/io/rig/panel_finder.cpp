@@ -205,6 +205,12 @@ std::optional<PanelRegion> find_panel(const torch::Tensor& signal_in) {
   return region;
 }
 
+std::string panel_region_source(const PanelRegion& region) {
+  return !region.found           ? "given (--panel-region)"
+         : !region.label.empty() ? "placed from its QR label"
+                                 : "found";
+}
+
 PanelRegion panel_region_from_box(int64_t height, int64_t width, const std::array<int64_t, 4>& box,
                                   const std::string& what) {
   const auto [x, y, w, h] = box;

@@ -38,6 +38,10 @@ struct PanelRegion {
   double spread = 0;  // the signal's spread over its mean in the region (label placement)
 };
 
+// How the region was had, as process.json and `info` name it: "placed from
+// its QR label", "found" or "given (--panel-region)".
+std::string panel_region_source(const PanelRegion& region);
+
 // signal: [H, W] float, counts above the black level. nullopt when no panel
 // can be told apart.
 std::optional<PanelRegion> find_panel(const torch::Tensor& signal);

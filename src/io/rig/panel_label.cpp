@@ -89,10 +89,8 @@ torch::Tensor quad_mask(const Corners& q, int64_t height, int64_t width) {
   return mask;
 }
 
-// The pinhole camera of the maker's undistorted images: OpenCV's
-// getOptimalNewCameraMatrix with alpha 1, whose frame just holds the
-// undistorted 9 x 9 grid of points spanning the image (pixel centres at
-// integers).
+}  // namespace
+
 core::Intrinsics maker_pinhole(const core::Intrinsics& lens) {
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
   for (int i = 0; i < 9; ++i)
@@ -109,6 +107,8 @@ core::Intrinsics maker_pinhole(const core::Intrinsics& lens) {
   pinhole.cx = -pinhole.fx * x0, pinhole.cy = -pinhole.fy * y0;
   return pinhole;
 }
+
+namespace {
 
 // signal seen through `pinhole` (bilinear; 0 outside the source).
 torch::Tensor resample(const torch::Tensor& signal_in, const core::Intrinsics& lens,

@@ -45,6 +45,12 @@ struct PanelLabel {
 // is not a panel serial.
 std::optional<PanelLabel> read_panel_label(const torch::Tensor& signal);
 
+// The pinhole camera of the maker's undistorted images: OpenCV's
+// getOptimalNewCameraMatrix with alpha 1 for `lens` (with distortion), whose
+// frame just holds the undistorted 9 x 9 grid of points spanning the image
+// (pixel centres at integers); the same size, no distortion.
+core::Intrinsics maker_pinhole(const core::Intrinsics& lens);
+
 // The panel a MicaSense label places in a band image (signal: [H, W] counts
 // above the black level) seen through `lens` (the band camera: focal
 // lengths, principal point, distortion), found as the maker's library finds
