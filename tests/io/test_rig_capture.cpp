@@ -37,6 +37,14 @@ TEST(Xmp, AttributesElementsAndLists) {
   EXPECT_EQ(xmp_list(xmp, "VignettingPolynomial"), (std::vector<std::string>{"-1e-4", "2.5e-7"}));
   EXPECT_EQ(xmp_list(xmp, "PrincipalPoint"), (std::vector<std::string>{"2.27", "1.80"}));
   EXPECT_TRUE(xmp_list(xmp, "RigRelatives").empty());
+  // A list of one item is a value (Parrot's Sequoia writes BandName so).
+  const std::string parrot =
+      "<Camera:BandName>\n<rdf:Seq>\n<rdf:li>Green</rdf:li>\n</rdf:Seq>\n</Camera:BandName>";
+  EXPECT_EQ(xmp_property(parrot, "BandName"), "Green");
+  EXPECT_EQ(xmp_list(parrot, "BandName"), (std::vector<std::string>{"Green"}));
+  const std::string nested = "<Camera:Lens><Camera:Model>x</Camera:Model></Camera:Lens>";
+  EXPECT_EQ(xmp_property(nested, "Lens"), std::nullopt);
+  EXPECT_TRUE(xmp_list(nested, "Lens").empty());
 }
 
 TEST(RigCapture, ReadsABandImagesMetadata) {
@@ -69,6 +77,15 @@ TEST(RigCapture, UnknownRigsAndFilesWithoutXmpAreNamed) {
               read_rig_band_image(dir / "other.tif");
             }).find("a rig this reader does not know"),
             std::string::npos);
+  // A Parrot Sequoia's band image: a fisheye lens, named with its rig.
+  std::string fisheye = test::rig_xmp({"c", 1});
+  fisheye.replace(fisheye.find("Camera:BandName"), 0,
+                  "Camera:RigName=\"Sequoia\" Camera:ModelType=\"fisheye\" ");
+  test::write_band_tiff(dir / "fisheye.tif", fisheye);
+  EXPECT_EQ(error_of([&] { read_rig_band_image(dir / "fisheye.tif"); }),
+            (dir / "fisheye.tif").string() +
+                ": XMP Camera:ModelType is 'fisheye' (a Sequoia rig): this reader knows the "
+                "perspective lens of the MicaSense RedEdge / Altum layout, not a fisheye lens");
   std::string bad = test::rig_xmp({"c", 1});
   bad.replace(bad.find("CentralWavelength=\"475\""), 23, "CentralWavelength=\"blue\"");
   test::write_band_tiff(dir / "bad.tif", bad);

@@ -403,8 +403,14 @@ void check_metadata(const RigBandImage& b) {
 std::optional<std::string> xmp_property(const std::string& xmp, const std::string& name) {
   if (auto value = attribute(xmp, name)) return value;
   auto inner = element_inner(xmp, name);
-  if (!inner || inner->find('<') != std::string::npos) return std::nullopt;  // a list
-  return unescape(trim(*inner));
+  if (!inner) return std::nullopt;
+  if (inner->find('<') == std::string::npos) return unescape(trim(*inner));
+  // A list of one item is that item (Parrot writes BandName so); a longer
+  // one, or another structure, has no single value.
+  if (inner->find("<rdf:li") == std::string::npos) return std::nullopt;
+  const std::vector<std::string> items = xmp_list(xmp, name);
+  if (items.size() == 1) return items.front();
+  return std::nullopt;
 }
 
 std::vector<std::string> xmp_list(const std::string& xmp, const std::string& name) {
@@ -460,6 +466,17 @@ RigBandImage read_rig_band_image(const fs::path& file) {
                                 " samples per pixel; a rig band image holds one band");
   if (xmp.empty())
     throw core::Error(file, "has no XMP metadata: not a band image of a multispectral rig");
+  // Pix4D's camera XMP names the lens model; MicaSense's files leave it out
+  // (perspective).
+  if (const auto model = xmp_property(xmp, "ModelType");
+      model && core::lower(trim(*model)) != "perspective") {
+    const std::optional<std::string> rig = xmp_property(xmp, "RigName");
+    throw core::Error(file, "XMP Camera:ModelType is '" + *model + "'" +
+                                (rig ? " (a " + *rig + " rig)" : std::string()) +
+                                ": this reader knows the perspective lens of the MicaSense "
+                                "RedEdge / Altum layout, not a " +
+                                *model + " lens");
+  }
   const std::optional<std::string> band = xmp_property(xmp, "BandName");
   if (!band)
     throw core::Error(file,
