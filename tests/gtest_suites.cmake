@@ -43,9 +43,28 @@ foreach(line IN LISTS lines)
 endforeach()
 list(REMOVE_DUPLICATES suites)
 
+# Seconds the longest suites took in a full `ctest -j2` (2026-12-06, AMD
+# EPYC, busy). ctest starts the costliest first; without these a fresh clone
+# (no Testing/Temporary/CTestCostData.txt yet) ran them in declaration order,
+# the 4-minute ErrorProbe as 151st of 155, and one core idled at the end
+# (CI's ctest took 835 s for 1,501 s of tests).
+set(ddhgs_suite_costs
+  test_reliability.ErrorProbe=324 test_app.RigCli=194 test_app.DenoiserCli=92
+  test_app.ProcessCli=79 test_app.OrthoCli=60 test_app.TrainCli=56
+  test_reliability.EarlyChecks=49 test_app.PriorCli=48 test_app.BlocksCli=41
+  test_app.ReportCli=40 test_app.AblateCli=38 test_reliability.OutputSafety=31
+  test_reliability.UserFiles=28 test_app.BandLayoutsCli=24 test_app.RigRefinementCli=23
+  test_app.ExportCli=20 test_reliability.FullDisk=20 test_app.LightCli=19
+  test_app.EvalCli=19 test_app.InfoCli=18 test_app.BandPerViewCli=18)
+
 foreach(suite IN LISTS suites)
   set(name "${ddhgs_suite_prefix}.${suite}")
   add_test("${name}" "${ddhgs_suite_exe}" "--gtest_filter=${suite}.*")
+  foreach(entry IN LISTS ddhgs_suite_costs)
+    if(entry MATCHES "^${name}=([0-9]+)$")
+      set_tests_properties("${name}" PROPERTIES COST "${CMAKE_MATCH_1}")
+    endif()
+  endforeach()
   set_tests_properties("${name}" PROPERTIES
     ENVIRONMENT "${ddhgs_suite_environment}"
     TIMEOUT "${ddhgs_suite_timeout}"
