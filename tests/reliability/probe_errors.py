@@ -705,6 +705,8 @@ def rig_cases(p):
          '"1e-300"\n Camera:IrradianceScaleToSI="1"  ', ["SpectralIrradiance", "1e-300"]),
         ("irradiance of 1e9", 'SpectralIrradiance="1.3"', 'SpectralIrradiance="1e9"',
          ["SpectralIrradiance", "1e+09"]),
+        ("a fisheye lens", 'Camera:CentralWavelength="560"', 'Camera:ModelType="fisheye"    ',
+         ["ModelType is 'fisheye'", "perspective"]),
     ]:
         captures, path = damaged("rig_" + name.replace(" ", "_"), "IMG_0001_2.tif", old, new)
         p.check("rig metadata: " + name, ["process", captures, "--rig"] + poses +
