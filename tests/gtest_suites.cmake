@@ -47,7 +47,7 @@ list(REMOVE_DUPLICATES suites)
 # EPYC, busy). ctest starts the costliest first; without these a fresh clone
 # (no Testing/Temporary/CTestCostData.txt yet) ran them in declaration order,
 # the 4-minute ErrorProbe as 151st of 155, and one core idled at the end
-# (CI's ctest took 835 s for 1,501 s of tests).
+# (a fresh-clone run of .ci/run: ctest took 835 s for 1,501 s of tests).
 set(ddhgs_suite_costs
   test_reliability.ErrorProbe=324 test_app.RigCli=194 test_app.DenoiserCli=92
   test_app.ProcessCli=79 test_app.OrthoCli=60 test_app.TrainCli=56

@@ -8,6 +8,7 @@
 #include <ctime>
 #include <map>
 #include <set>
+#include <utility>
 
 #include "core/error.h"
 #include "core/text.h"
@@ -398,6 +399,20 @@ void check_metadata(const RigBandImage& b) {
     if (!(std::abs(angle) <= 7)) bad("XMP DLS attitude", angle, "not an angle in radians");
 }
 
+// The rdf:li items of an element's inner text (an rdf:Seq, Bag or Alt);
+// none when it holds no list.
+std::vector<std::string> list_items(const std::string& inner) {
+  std::vector<std::string> items;
+  for (size_t at = inner.find("<rdf:li"); at != std::string::npos;
+       at = inner.find("<rdf:li", at + 1)) {
+    const size_t open_end = inner.find('>', at);
+    const size_t close = inner.find("</rdf:li>", open_end);
+    if (open_end == std::string::npos || close == std::string::npos) break;
+    items.push_back(unescape(trim(inner.substr(open_end + 1, close - open_end - 1))));
+  }
+  return items;
+}
+
 }  // namespace
 
 std::optional<std::string> xmp_property(const std::string& xmp, const std::string& name) {
@@ -407,25 +422,15 @@ std::optional<std::string> xmp_property(const std::string& xmp, const std::strin
   if (inner->find('<') == std::string::npos) return unescape(trim(*inner));
   // A list of one item is that item (Parrot writes BandName so); a longer
   // one, or another structure, has no single value.
-  if (inner->find("<rdf:li") == std::string::npos) return std::nullopt;
-  const std::vector<std::string> items = xmp_list(xmp, name);
-  if (items.size() == 1) return items.front();
+  std::vector<std::string> items = list_items(*inner);
+  if (items.size() == 1) return std::move(items.front());
   return std::nullopt;
 }
 
 std::vector<std::string> xmp_list(const std::string& xmp, const std::string& name) {
-  std::vector<std::string> items;
   auto inner = element_inner(xmp, name);
-  if (inner && inner->find("<rdf:li") != std::string::npos) {
-    for (size_t at = inner->find("<rdf:li"); at != std::string::npos;
-         at = inner->find("<rdf:li", at + 1)) {
-      const size_t open_end = inner->find('>', at);
-      const size_t close = inner->find("</rdf:li>", open_end);
-      if (open_end == std::string::npos || close == std::string::npos) break;
-      items.push_back(unescape(trim(inner->substr(open_end + 1, close - open_end - 1))));
-    }
-    return items;
-  }
+  if (inner && inner->find("<rdf:li") != std::string::npos) return list_items(*inner);
+  std::vector<std::string> items;
   const std::optional<std::string> value = xmp_property(xmp, name);
   if (!value) return items;
   for (size_t at = 0;;) {
