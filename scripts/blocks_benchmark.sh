@@ -15,8 +15,10 @@
 # Environment: DDHGS (default build/ddhgs), VIEWS (48), LINES (4), WIDTH
 # (96), HEIGHT (72), ITERATIONS (of the single run; 3000), PRESET (demo),
 # BLOCKS (2x2), SEED (of the flight; 0), TRAIN_SEED (of every training; 0),
-# PYTHON (a python3 with numpy; default /usr/bin/python3; gdal_translate
-# reads the orthomosaics).
+# BLOCK_SET (more words for each block's train only, e.g. "--set
+# densify.grad_threshold=0.0004", to try a setting on the blocks against the
+# same single model), PYTHON (a python3 with numpy; default /usr/bin/python3;
+# gdal_translate reads the orthomosaics).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ddhgs="$(realpath "${DDHGS:-build/ddhgs}")"
@@ -24,6 +26,7 @@ out="${1:-/tmp/ddhgs-blocks-benchmark}"
 views="${VIEWS:-48}" lines="${LINES:-4}" width="${WIDTH:-96}" height="${HEIGHT:-72}"
 iterations="${ITERATIONS:-3000}" preset="${PRESET:-demo}" grid="${BLOCKS:-2x2}" seed="${SEED:-0}"
 train_seed="${TRAIN_SEED:-0}"
+read -r -a block_set <<<"${BLOCK_SET:-}"
 python="${PYTHON:-/usr/bin/python3}"
 rm -rf "$out"
 mkdir -p "$out"
@@ -61,7 +64,7 @@ for block in "$out"/blocks/block_*; do
   block_iterations=$(( (iterations * train_views + total / 2) / total ))
   echo "$name: $train_views of $total training views, $block_iterations iterations"
   timed "$name" "$ddhgs" -q train "$block" --out "$block/run" --preset "$preset" \
-    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0
+    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0 "${block_set[@]}"
 done
 "$ddhgs" merge "$out/blocks" --out "$out/merged"
 "$ddhgs" -q merge "$out/blocks" --out "$out/merged-cut" --seam-blend 0

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "core/error.h"
+#include "core/log.h"
 #include "eval/metrics.h"
 #include "io/scene/scene_report.h"
 #include "train/checkpoint.h"
