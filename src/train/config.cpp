@@ -196,6 +196,7 @@ constexpr AddedKey kAddedKeys[] = {
     {"diffusion.prior_finetune_steps", "0"},
     {"camera_refinement.rig_align_fraction", "0"},  // rig runs had no alignment phase
     {"camera_refinement.rig_pivot", "false"},       // turns about the camera centre
+    {"camera_refinement.rig_start", "\"\""},        // the factory values
 };
 
 // The one section added whole since format_version 2 began.

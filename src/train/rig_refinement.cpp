@@ -105,6 +105,26 @@ std::map<int, io::RigCorrection> RigRefinementImpl::corrections(double extent) c
   return out;
 }
 
+void RigRefinementImpl::start_from(const std::map<int, io::RigCorrection>& start, double extent,
+                                   const std::filesystem::path& source) {
+  torch::NoGradGuard no_grad;
+  for (const auto& [index, c] : start) {
+    const auto at = std::find(cameras_.begin(), cameras_.end(), index);
+    core::require(at != cameras_.end(), source,
+                  "has a correction for rig camera " + std::to_string(index) +
+                      ", which is not one of this rig's band cameras");
+    const int64_t row = int64_t(at - cameras_.begin());
+    const core::Vec3 r = c.rotation_rad, o = c.offset;
+    rotation[row].copy_(torch::tensor({r.x, r.y, r.z}, torch::kFloat64));
+    // offset_of() adds the pivot's part to the learned o': take it away.
+    offset[row].zero_();
+    const torch::Tensor d =
+        model::quat_to_matrix(model::rotation_vector_quat(rotation[row]).unsqueeze(0))[0];
+    const torch::Tensor pivot_part = offset_of(row, d, extent);
+    offset[row].copy_(torch::tensor({o.x, o.y, o.z}, torch::kFloat64) / extent - pivot_part);
+  }
+}
+
 nlohmann::json RigRefinementImpl::report(const io::Scene& scene, double extent,
                                          const std::filesystem::path& file) const {
   const std::map<int, io::RigCorrection> found = corrections(extent);

@@ -63,6 +63,12 @@ class RigRefinementImpl : public torch::nn::Module {
   torch::Tensor pull(double weight, double extent) const;
   // The corrections by rig camera index, offsets in scene units.
   std::map<int, io::RigCorrection> corrections(double extent) const;
+  // Starts from `start` (corrections() of an earlier run, as its
+  // rig_corrections.json holds them): corrections() then gives them back.
+  // Cameras `start` leaves out keep theirs; core::Error naming `source` for
+  // a camera that is not one of this rig's band cameras.
+  void start_from(const std::map<int, io::RigCorrection>& start, double extent,
+                  const std::filesystem::path& source);
   // Writes them to `file` (io::write_rig_corrections, which eval, render
   // and report apply to the views), logs one line per camera and returns
   // them as io::rig_corrections_json does.

@@ -140,6 +140,7 @@ CameraRefinementConfig parse_cameras(const json& c, const std::string& source) {
   o.rig_warmup_fraction = read<double>(c, s, "rig_warmup_fraction", source);
   o.rig_align_fraction = read<double>(c, s, "rig_align_fraction", source);
   o.rig_pivot = read<bool>(c, s, "rig_pivot", source);
+  o.rig_start = read<std::string>(c, s, "rig_start", source);
   return o;
 }
 

@@ -122,6 +122,9 @@ struct CameraRefinementConfig {
   bool rig = false, rig_pivot = false;
   double rig_rotation_lr = 0, rig_offset_lr = 0, rig_pull = 0, rig_warmup_fraction = 0;
   double rig_align_fraction = 0;
+  // rig_start: a rig_corrections.json (an earlier run's) the corrections
+  // start from instead of the factory values; empty: none.
+  std::string rig_start;
 };
 
 struct DensifyConfig {

@@ -263,6 +263,10 @@ void Trainer::build_modules() {
                          return in.view < 0 ? torch::zeros({}) : exposure_->prior(in.view);
                        }});
   }
+  if (!config_.camera_refinement.rig && !config_.camera_refinement.rig_start.empty())
+    throw core::Error(config_.camera_refinement.rig_start,
+                      "is camera_refinement.rig_start, but camera_refinement.rig is off: the "
+                      "corrections it holds would not be used (set camera_refinement.rig=true)");
   if (config_.camera_refinement.rig) {
     for (int v : scene_->train)
       if (scene_->views[size_t(v)].rig_camera == scene_->rig->reference_camera)
@@ -271,6 +275,12 @@ void Trainer::build_modules() {
                              ? rig_pivot_depth(*scene_, reference_train_)
                              : 0.0;
     rig_refinement_ = RigRefinement(*scene_, pivot);
+    // A resumed run's checkpoint replaces these.
+    const std::string& start = config_.camera_refinement.rig_start;
+    if (!start.empty()) {
+      rig_refinement_->start_from(io::read_rig_corrections(start), extent_, start);
+      if (!auxiliary_) core::log_info("rig refinement: the band cameras start from " + start);
+    }
     if (pivot > 0 && !auxiliary_)
       core::log_info("rig refinement: band cameras turn about the point " + core::fixed(pivot, 3) +
                      " scene units ahead of them (camera_refinement.rig_pivot)");

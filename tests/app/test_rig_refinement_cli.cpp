@@ -3,7 +3,7 @@
 // camera's true poses, trains with camera_refinement.rig and finds the
 // turns; a resumed run ends where a straight one does; eval places the
 // band cameras by the corrections; the warm-up trains on the reference
-// camera's views alone.
+// camera's views alone; a second run starts from the first's corrections.
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
@@ -111,6 +111,67 @@ TEST(RigRefinementCli, TheWarmUpTrainsOnTheReferenceCameraAlone) {
   EXPECT_EQ(largest_correction(root / "warm"), 0.0);
   ASSERT_EQ(ddhgs(train + "0 --out " + (root / "cold").string(), &out), 0) << out;
   EXPECT_GT(largest_correction(root / "cold"), 1e-3);
+}
+
+TEST(RigRefinementCli, ASecondRunStartsFromTheFirstsCorrections) {
+  // camera_refinement.rig_start: a run whose corrections are held (rates 0)
+  // keeps an earlier run's, as its rig_corrections.json shows; set without
+  // camera_refinement.rig, or naming no file, it stops before any work.
+  const fs::path root = test::temp_dir("rig_refinement_start");
+  const fs::path rig = root / "rig", scene = root / "scene";
+  std::string out;
+  ASSERT_EQ(ddhgs("synth --preset rig --width 48 --height 36 --views 6 --rig-perturb-deg 1 --out " +
+                      rig.string(),
+                  &out),
+            0)
+      << out;
+  ASSERT_EQ(test::process_with_true_poses(rig, scene, "--reference-camera 1", &out), 0) << out;
+  const std::string train = "train " + scene.string() +
+                            " --preset demo --seed 0 --set camera_refinement.rig=true"
+                            " --set camera_refinement.rig_warmup_fraction=0";
+  ASSERT_EQ(ddhgs(train + " --iterations 40 --out " + (root / "first").string(), &out), 0) << out;
+  const fs::path file = root / "first" / "rig_corrections.json";
+  const std::string held = " --set camera_refinement.rig_start=" + file.string() +
+                           " --set camera_refinement.rig_rotation_lr=0"
+                           " --set camera_refinement.rig_offset_lr=0";
+  ASSERT_EQ(ddhgs(train + held + " --iterations 20 --out " + (root / "second").string(), &out), 0)
+      << out;
+  EXPECT_NE(out.find("start from " + file.string()), std::string::npos) << out;
+  const json first = read_json(file)["cameras"];
+  const json second = read_json(root / "second" / "rig_corrections.json")["cameras"];
+  ASSERT_EQ(first.size(), 4u);
+  ASSERT_EQ(second.size(), first.size());
+  double largest = 0;
+  for (size_t c = 0; c < first.size(); ++c) {
+    EXPECT_EQ(second[c]["rig_camera"], first[c]["rig_camera"]);
+    for (const char* key : {"rotation_rad", "offset"})
+      for (int k = 0; k < 3; ++k) {
+        const double a = first[c][key][k].get<double>(), b = second[c][key][k].get<double>();
+        largest = std::max(largest, std::abs(a));
+        EXPECT_NEAR(b, a, 1e-6) << c << " " << key << " " << k;
+      }
+  }
+  EXPECT_GT(largest, 1e-3);  // the first run did move them
+
+  // Without camera_refinement.rig, and with a file that is not there: one
+  // error naming the file, and no run folder.
+  EXPECT_NE(ddhgs("train " + scene.string() + " --preset demo --iterations 20" +
+                      " --set camera_refinement.rig_start=" + file.string() + " --out " +
+                      (root / "off").string(),
+                  &out),
+            0);
+  EXPECT_NE(out.find(file.string() + ": is camera_refinement.rig_start, but "
+                                     "camera_refinement.rig is off"),
+            std::string::npos)
+      << out;
+  EXPECT_FALSE(fs::exists(root / "off"));
+  const fs::path missing = root / "no" / "rig_corrections.json";
+  EXPECT_NE(ddhgs(train + " --iterations 20 --set camera_refinement.rig_start=" + missing.string() +
+                      " --out " + (root / "missing").string(),
+                  &out),
+            0);
+  EXPECT_NE(out.find(missing.string()), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(root / "missing"));
 }
 
 }  // namespace

@@ -3,12 +3,15 @@
 // gradients match finite differences, a known rotation and offset of a
 // band camera are recovered by rendering, and with a pivot a turn alone
 // keeps the point at the pivot's depth where it was, which lets a turn whose
-// image shift an offset cancels converge.
+// image shift an offset cancels converge; an earlier run's corrections are
+// taken up as they were found.
 #include <gtest/gtest.h>
 
 #include <torch/optim/adam.h>
+#include <map>
 #include <memory>
 
+#include "core/error.h"
 #include "io/rig/rig_capture.h"
 #include "model/densify.h"
 #include "model/gaussian_fixtures.h"
@@ -267,6 +270,45 @@ TEST(RigRefinement, ATurnAnOffsetHidesConvergesAboutThePivotNotAboutTheCentre) {
   const double about_pivot = rotation_error_deg(depth), about_centre = rotation_error_deg(0);
   EXPECT_LT(about_pivot, 0.1) << "about the centre: " << about_centre;
   EXPECT_GT(about_centre, 2 * about_pivot);
+}
+
+TEST(RigRefinement, StartsFromAnEarlierRunsCorrectionsWithOrWithoutAPivot) {
+  const std::unique_ptr<io::Scene> made = rig_scene(2);
+  const io::Scene& scene = *made;
+  const double extent = 2.5;
+  // As an earlier run's rig_corrections.json gives them (scene units).
+  const std::map<int, io::RigCorrection> start{{3, {{0.01, -0.02, 0.004}, {0.03, -0.05, 0.02}}}};
+  for (const double depth : {0.0, 4.0}) {
+    RigRefinement rig(scene, depth);
+    rig->start_from(start, extent, "earlier/rig_corrections.json");
+    const std::map<int, io::RigCorrection> found = rig->corrections(extent);
+    EXPECT_NEAR((found.at(3).rotation_rad - start.at(3).rotation_rad).norm(), 0, 1e-7) << depth;
+    EXPECT_NEAR((found.at(3).offset - start.at(3).offset).norm(), 0, 1e-6) << depth;
+    // Camera 1, which the file leaves out, keeps the factory values.
+    EXPECT_NEAR(found.at(1).rotation_rad.norm() + found.at(1).offset.norm(), 0, 1e-12) << depth;
+    // The corrected camera is the one the file describes.
+    const int view = 5;  // capture 1, camera 3
+    const core::Camera& camera = scene.views[view].camera;
+    const core::Camera want = io::corrected_band_camera(camera, scene.rig->turn(3), start.at(3));
+    const core::Camera got = rig->corrected(view, camera, extent);
+    const core::Vec3 x{0.3, -0.2, 0.5};
+    EXPECT_NEAR(
+        (got.world_to_camera.transform_point(x) - want.world_to_camera.transform_point(x)).norm(),
+        0, 1e-6)
+        << depth;
+  }
+  // The reference camera (2) and cameras the rig lacks have no correction.
+  RigRefinement rig(scene, 0);
+  for (const int camera : {2, 7}) {
+    try {
+      rig->start_from({{camera, {}}}, extent, "earlier/rig_corrections.json");
+      ADD_FAILURE() << camera;
+    } catch (const core::Error& e) {
+      EXPECT_NE(std::string(e.what()).find("earlier/rig_corrections.json"), std::string::npos);
+      EXPECT_NE(std::string(e.what()).find("rig camera " + std::to_string(camera)),
+                std::string::npos);
+    }
+  }
 }
 
 }  // namespace
