@@ -275,9 +275,9 @@ void Trainer::build_modules() {
                              ? rig_pivot_depth(*scene_, reference_train_)
                              : 0.0;
     rig_refinement_ = RigRefinement(*scene_, pivot);
-    // A resumed run's checkpoint replaces these.
+    // A resumed run's checkpoint holds its own (the file may be gone).
     const std::string& start = config_.camera_refinement.rig_start;
-    if (!start.empty()) {
+    if (!start.empty() && !resuming_) {
       rig_refinement_->start_from(io::read_rig_corrections(start), extent_, start);
       if (!auxiliary_) core::log_info("rig refinement: the band cameras start from " + start);
     }

@@ -152,6 +152,17 @@ TEST(RigRefinementCli, ASecondRunStartsFromTheFirstsCorrections) {
       }
   }
   EXPECT_GT(largest, 1e-3);  // the first run did move them
+  // Resumed for more iterations, the run keeps its checkpoint's corrections
+  // and no longer needs the file.
+  fs::rename(file, root / "moved.json");
+  ASSERT_EQ(ddhgs("train --resume " + (root / "second").string() + " --iterations 30", &out), 0)
+      << out;
+  const json resumed = read_json(root / "second" / "rig_corrections.json")["cameras"];
+  for (size_t c = 0; c < first.size(); ++c)
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(resumed[c]["rotation_rad"][k].get<double>(),
+                  first[c]["rotation_rad"][k].get<double>(), 1e-6);
+  fs::rename(root / "moved.json", file);
 
   // Without camera_refinement.rig, and with a file that is not there: one
   // error naming the file, and no run folder.
