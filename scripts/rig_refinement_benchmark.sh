@@ -10,7 +10,10 @@
 #   scripts/rig_refinement_benchmark.sh [BUILD_DIR] [ITERATIONS] [WORK_DIR]
 # Overrides: DDHGS_RIG_SIZE (synth flags, default: the rig preset's 160x120,
 # 24 captures), DDHGS_RIG_TRAIN (extra train flags), DDHGS_RIG_RUNS (which
-# of clean_run drifted_refined drifted_plain to train; default all).
+# of clean_run drifted_refined drifted_plain drifted_second to train; default
+# the first three). drifted_second trains the drifted rig again with
+# drifted_refined's corrections held (camera_refinement.rig_start, rates 0,
+# no warm-up; without DDHGS_RIG_TRAIN): the two-pass procedure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build_dir="${1:-build}"
@@ -59,4 +62,12 @@ runs="${DDHGS_RIG_RUNS:-clean_run drifted_refined drifted_plain}"
 [[ " $runs " == *" clean_run "* ]] && train clean clean_run
 [[ " $runs " == *" drifted_refined "* ]] && train drifted drifted_refined --set camera_refinement.rig=true
 [[ " $runs " == *" drifted_plain "* ]] && train drifted drifted_plain
+if [[ " $runs " == *" drifted_second "* ]]; then
+  test -f "$work/drifted_refined/rig_corrections.json" ||
+    { echo "rig_refinement_benchmark: drifted_second needs drifted_refined first" >&2; exit 1; }
+  DDHGS_RIG_TRAIN="" train drifted drifted_second --set camera_refinement.rig=true \
+    --set camera_refinement.rig_start="$work/drifted_refined/rig_corrections.json" \
+    --set camera_refinement.rig_rotation_lr=0 --set camera_refinement.rig_offset_lr=0 \
+    --set camera_refinement.rig_warmup_fraction=0
+fi
 echo "rig-refinement-benchmark: $iterations iterations, work folder $work"
