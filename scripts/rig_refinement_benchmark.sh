@@ -28,9 +28,10 @@ scene() {  # NAME SYNTH_FLAGS...
   local name=$1
   shift
   "$ddhgs" synth --preset rig $size "$@" --out "$work/$name.synth" --force >/dev/null
+  # The clean truth copied in by an earlier run is not process's to replace.
+  rm -rf "$work/$name/clean"
   "$ddhgs" process "$work/$name.synth/captures" --rig --reference-camera 1 --skip-colmap \
     --poses "$work/$name.synth/truth/transforms.json" --out "$work/$name" --force >/dev/null
-  rm -rf "$work/$name/clean"
   cp -r "$work/$name.synth/truth/clean" "$work/$name/clean"
 }
 train() {  # SCENE RUN FLAGS...
