@@ -24,17 +24,26 @@ using test::ddhgs;
 
 using test::read_json;
 
+// The synthetic rig (`synth --preset rig` with `size`: width, height and
+// captures) with every band camera but camera 1 turned by 1 degree, in
+// root/rig, processed with camera 1's true poses into root/scene.
+void make_drifted_rig(const fs::path& root, const std::string& size) {
+  std::string out;
+  ASSERT_EQ(
+      ddhgs("synth --preset rig " + size + " --rig-perturb-deg 1 --out " + (root / "rig").string(),
+            &out),
+      0)
+      << out;
+  ASSERT_EQ(
+      test::process_with_true_poses(root / "rig", root / "scene", "--reference-camera 1", &out), 0)
+      << out;
+}
+
 TEST(RigRefinementCli, TrainingFindsTheTurnedCamerasAndResumesWithThem) {
   const fs::path root = test::temp_dir("rig_refinement_cli");
   const fs::path rig = root / "rig", scene = root / "scene";
   std::string out;
-  ASSERT_EQ(
-      ddhgs("synth --preset rig --width 64 --height 48 --views 10 --rig-perturb-deg 1 --out " +
-                rig.string(),
-            &out),
-      0)
-      << out;
-  ASSERT_EQ(test::process_with_true_poses(rig, scene, "--reference-camera 1", &out), 0) << out;
+  ASSERT_NO_FATAL_FAILURE(make_drifted_rig(root, "--width 64 --height 48 --views 10"));
   fs::copy(rig / "truth" / "clean", scene / "clean");
   const std::string train =
       "train " + scene.string() + " --preset demo --seed 0 --set camera_refinement.rig=true --out ";
@@ -87,14 +96,9 @@ TEST(RigRefinementCli, TheWarmUpTrainsOnTheReferenceCameraAlone) {
   // corrections have nothing to learn from and stay at the factory values;
   // without it they move from the first iteration.
   const fs::path root = test::temp_dir("rig_refinement_warmup");
-  const fs::path rig = root / "rig", scene = root / "scene";
+  const fs::path scene = root / "scene";
   std::string out;
-  ASSERT_EQ(ddhgs("synth --preset rig --width 48 --height 36 --views 6 --rig-perturb-deg 1 --out " +
-                      rig.string(),
-                  &out),
-            0)
-      << out;
-  ASSERT_EQ(test::process_with_true_poses(rig, scene, "--reference-camera 1", &out), 0) << out;
+  ASSERT_NO_FATAL_FAILURE(make_drifted_rig(root, "--width 48 --height 36 --views 6"));
   const std::string train =
       "train " + scene.string() +
       " --preset demo --seed 0 --iterations 40 --set camera_refinement.rig=true"
@@ -118,14 +122,9 @@ TEST(RigRefinementCli, ASecondRunStartsFromTheFirstsCorrections) {
   // keeps an earlier run's, as its rig_corrections.json shows; set without
   // camera_refinement.rig, or naming no file, it stops before any work.
   const fs::path root = test::temp_dir("rig_refinement_start");
-  const fs::path rig = root / "rig", scene = root / "scene";
+  const fs::path scene = root / "scene";
   std::string out;
-  ASSERT_EQ(ddhgs("synth --preset rig --width 48 --height 36 --views 6 --rig-perturb-deg 1 --out " +
-                      rig.string(),
-                  &out),
-            0)
-      << out;
-  ASSERT_EQ(test::process_with_true_poses(rig, scene, "--reference-camera 1", &out), 0) << out;
+  ASSERT_NO_FATAL_FAILURE(make_drifted_rig(root, "--width 48 --height 36 --views 6"));
   const std::string train = "train " + scene.string() +
                             " --preset demo --seed 0 --set camera_refinement.rig=true"
                             " --set camera_refinement.rig_warmup_fraction=0";
