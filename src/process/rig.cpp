@@ -364,11 +364,15 @@ ProcessResult process_rig(const RigProcessOptions& options) {
     if (georef) write_georeference(tmp / io::kGeorefFile, *georef);
     // The rig as its metadata describes it, for training's per-camera
     // corrections (camera_refinement.rig); metres per unit when the given
-    // poses say it.
+    // poses say it, else the georeference's scale (COLMAP's frame fitted to
+    // the GPS), so corrections and lever arms can be given in cm.
     transforms.rig = io::TransformsRig{reference, 0, {}};
     for (const io::RigBandImage& b : cameras)
       transforms.rig->cameras.push_back({b.rig_index, b.band_name, b.rig_relatives_deg});
-    if (given_file && given_file->rig) transforms.rig->unit_m = given_file->rig->unit_m;
+    if (given_file && given_file->rig && given_file->rig->unit_m > 0)
+      transforms.rig->unit_m = given_file->rig->unit_m;
+    else if (georef)
+      transforms.rig->unit_m = georef->scene_to_crs.scale;
     io::PointCloud cloud = io::colmap_points(model);
     if (cloud.xyz.defined() && cloud.xyz.size(0) > 0) {
       io::write_point_ply(tmp / "points.ply", cloud);

@@ -267,6 +267,11 @@ void Trainer::build_modules() {
     throw core::Error(config_.camera_refinement.rig_start,
                       "is camera_refinement.rig_start, but camera_refinement.rig is off: the "
                       "corrections it holds would not be used (set camera_refinement.rig=true)");
+  const CameraRefinementConfig& cameras = config_.camera_refinement;
+  if (cameras.rig && cameras.rig_pivot && cameras.rig_offset_lr == 0 && cameras.rig_rotation_lr > 0)
+    throw core::Error("camera_refinement.rig_pivot",
+                      "moves each band camera's centre as it turns, so rig_offset_lr=0 would not "
+                      "hold the offsets (known lever arms): set rig_pivot=false");
   if (config_.camera_refinement.rig) {
     for (int v : scene_->train)
       if (scene_->views[size_t(v)].rig_camera == scene_->rig->reference_camera)
@@ -278,7 +283,8 @@ void Trainer::build_modules() {
     // A resumed run's checkpoint holds its own (the file may be gone).
     const std::string& start = config_.camera_refinement.rig_start;
     if (!start.empty() && !resuming_) {
-      rig_refinement_->start_from(io::read_rig_corrections(start), extent_, start);
+      rig_refinement_->start_from(io::read_rig_corrections(start, scene_->rig->unit_m), extent_,
+                                  start);
       if (!auxiliary_) core::log_info("rig refinement: the band cameras start from " + start);
     }
     if (pivot > 0 && !auxiliary_)

@@ -341,6 +341,33 @@ TEST(RigCli, NadirStripTrainsWithDefaultSettings) {
   EXPECT_FALSE(read_json(root / "run" / "eval" / "metrics.json").contains("backdrop"));
 }
 
+// Poses in a unit of their own (here half a metre, as COLMAP's frame has an
+// arbitrary one): the GPS fit's scale gives the scene its metres per unit,
+// so the rig's corrections and lever arms read in cm.
+TEST(RigCli, PosesInAnUnknownUnitTakeTheGeoreferencesScale) {
+  const fs::path root = test::temp_dir("rig_cli_unit");
+  const fs::path rig = root / "rig";
+  std::string out;
+  ASSERT_EQ(ddhgs("synth --preset rig-nadir --out " + rig.string(), &out), 0) << out;
+  json poses = read_json(rig / "truth" / "transforms.json");
+  ASSERT_EQ(poses["rig"]["unit_m"].get<double>(), 1.0);
+  poses["rig"].erase("unit_m");
+  poses.erase("ply_file_path");
+  for (json& frame : poses["frames"])
+    for (int r = 0; r < 3; ++r)
+      frame["transform_matrix"][r][3] = 2 * frame["transform_matrix"][r][3].get<double>();
+  io::write_file_atomically(rig / "truth" / "half_metres.json", poses.dump());
+  ASSERT_EQ(ddhgs("process " + (rig / "captures").string() + " --rig --skip-colmap --poses " +
+                      (rig / "truth" / "half_metres.json").string() + " --out " +
+                      (root / "scene").string(),
+                  &out),
+            0)
+      << out;
+  const double scale = read_json(root / "scene" / "georef.json")["scene_to_crs"]["scale"];
+  EXPECT_NEAR(scale, 0.5, 1e-6);
+  EXPECT_EQ(read_json(root / "scene" / "transforms.json")["rig"]["unit_m"].get<double>(), scale);
+}
+
 // COLMAP poses the reference camera's images; every band camera follows by
 // its rig rotation. Sized by the environment like the cube process test.
 TEST(RigCli, ColmapPosesEveryBandCamera) {

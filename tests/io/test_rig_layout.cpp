@@ -91,5 +91,40 @@ TEST(RigLayout, CorrectionsFileRoundTripsAndRefusesMalformedOnes) {
   EXPECT_THROW(read_rig_corrections(dir / "bad.json"), core::Error);
 }
 
+// A rig's known lever arms, written by hand: offsets in cm (converted by
+// the scene's unit), no rotation; refused where the unit is unknown.
+TEST(RigLayout, LeverArmsInCentimetresNeedTheScenesUnit) {
+  const fs::path dir = test::temp_dir("rig_lever_arms");
+  const fs::path arms = dir / "lever_arms.json";
+  write_file_atomically(arms,
+                        "{\"cameras\": [{\"rig_camera\": 2, \"offset_cm\": [4, -3, 0.5]},"
+                        " {\"rig_camera\": 5, \"offset_cm\": [0, 10, 0],"
+                        " \"rotation_rad\": [0.001, 0, 0]}]}");
+  const std::map<int, RigCorrection> back = read_rig_corrections(arms, 0.5);  // 0.5 m a unit
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_NEAR((back.at(2).offset - core::Vec3{0.08, -0.06, 0.01}).norm(), 0, 1e-15);
+  EXPECT_EQ(back.at(2).rotation_rad.norm(), 0);
+  EXPECT_NEAR((back.at(5).offset - core::Vec3{0, 0.2, 0}).norm(), 0, 1e-15);
+  EXPECT_EQ(back.at(5).rotation_rad.x, 0.001);
+  try {
+    read_rig_corrections(arms);
+    ADD_FAILURE() << "offset_cm read without the scene's unit";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("lever_arms.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("unit is unknown"), std::string::npos) << e.what();
+  }
+  // "offset" (scene units, exact) wins over "offset_cm" (a run's own file).
+  write_file_atomically(arms,
+                        "{\"cameras\": [{\"rig_camera\": 2, \"offset\": [1, 2, 3],"
+                        " \"offset_cm\": [7, 7, 7]}]}");
+  EXPECT_EQ((read_rig_corrections(arms, 0.5).at(2).offset - core::Vec3{1, 2, 3}).norm(), 0);
+  write_file_atomically(arms,
+                        "{\"cameras\": [{\"rig_camera\": 2, \"offset_cm\": [1, 2, 3]},"
+                        " {\"rig_camera\": 2, \"offset_cm\": [1, 2, 3]}]}");
+  EXPECT_THROW(read_rig_corrections(arms, 1.0), core::Error);
+  write_file_atomically(arms, "{\"cameras\": [{\"rig_camera\": 2}]}");
+  EXPECT_THROW(read_rig_corrections(arms, 1.0), core::Error);
+}
+
 }  // namespace
 }  // namespace ddhgs::io

@@ -123,7 +123,7 @@ void write_rig_corrections(const fs::path& path, const TransformsRig& rig,
   write_file_atomically(path, rig_corrections_json(rig, corrections).dump(2) + "\n");
 }
 
-std::map<int, RigCorrection> read_rig_corrections(const fs::path& path) {
+std::map<int, RigCorrection> read_rig_corrections(const fs::path& path, double unit_m) {
   json root;
   try {
     root = json::parse(read_file(path));
@@ -137,10 +137,25 @@ std::map<int, RigCorrection> read_rig_corrections(const fs::path& path) {
     const json& c = root["cameras"][i];
     const std::string where = "cameras[" + std::to_string(i) + "]";
     if (!c.is_object() || !c.contains("rig_camera") || !c["rig_camera"].is_number_integer() ||
-        !c.contains("rotation_rad") || !c.contains("offset"))
-      throw core::Error(path, where + ": expected rig_camera, rotation_rad and offset");
-    out[c["rig_camera"].get<int>()] = {read_vec(c["rotation_rad"], path, where + ".rotation_rad"),
-                                       read_vec(c["offset"], path, where + ".offset")};
+        !(c.contains("offset") || c.contains("offset_cm")))
+      throw core::Error(path,
+                        where + ": expected rig_camera and offset (scene units) or offset_cm");
+    const int index = c["rig_camera"].get<int>();
+    if (out.count(index))
+      throw core::Error(path, where + ": rig camera " + std::to_string(index) + " is given twice");
+    RigCorrection correction;
+    if (c.contains("rotation_rad"))
+      correction.rotation_rad = read_vec(c["rotation_rad"], path, where + ".rotation_rad");
+    if (c.contains("offset")) {
+      correction.offset = read_vec(c["offset"], path, where + ".offset");
+    } else {
+      if (!(unit_m > 0))
+        throw core::Error(path, where +
+                                    ": gives offset_cm, but this scene's unit is unknown (posed "
+                                    "without GPS or metric poses): give offset in scene units");
+      correction.offset = read_vec(c["offset_cm"], path, where + ".offset_cm") * (0.01 / unit_m);
+    }
+    out[index] = correction;
   }
   return out;
 }

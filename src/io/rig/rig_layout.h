@@ -71,7 +71,13 @@ std::string describe_rig_correction(const TransformsRig& rig, int index,
 // RUN/rig_corrections.json: rig_corrections_json, written atomically.
 void write_rig_corrections(const std::filesystem::path& path, const TransformsRig& rig,
                            const std::map<int, RigCorrection>& corrections);
-// core::Error naming the file when it is malformed.
-std::map<int, RigCorrection> read_rig_corrections(const std::filesystem::path& path);
+// A rig_corrections.json, or a rig's known lever arms in the same form: each
+// camera's "rig_camera", its "offset" in scene units or, where the scene's
+// unit is known (unit_m metres per scene unit, > 0), its "offset_cm", and
+// its "rotation_rad" (zero when absent). "offset" wins where both are given
+// (a run's own file has both). core::Error naming the file when it is
+// malformed, or gives offset_cm alone for a scene whose unit is unknown.
+std::map<int, RigCorrection> read_rig_corrections(const std::filesystem::path& path,
+                                                  double unit_m = 0);
 
 }  // namespace ddhgs::io
