@@ -13,6 +13,7 @@
 #include "core/spectral_pca.h"
 #include "core/tensor_values.h"
 #include "io/rig/rig_capture.h"
+#include "io/rig/rig_layout.h"
 #include "io/rig/rig_radiometry.h"
 #include "io/scene/backdrop.h"
 #include "io/scene/scene.h"
@@ -200,6 +201,11 @@ nlohmann::json to_json(const io::Scene& scene, const io::SceneReport& r, const B
                    {"gps_worst_capture", g.worst_capture},
                    {"orientation_from", g.orientation_from}};
   }
+  if (scene.rig) {
+    j["rig"] = {{"band_cameras", scene.rig->cameras.size()},
+                {"reference_camera", scene.rig->reference_camera}};
+    if (scene.rig->unit_m > 0) j["rig"]["unit_m"] = scene.rig->unit_m;
+  }
   j["notes"] = scene.notes;
   j["warnings"] = scene.warnings;
   j["errors"] = r.errors;
@@ -219,6 +225,18 @@ std::string bands_text(const io::Scene& scene) {
   }
   auto [lo, hi] = std::minmax_element(w.begin(), w.end());
   return out + ", " + nm(*lo) + "-" + nm(*hi) + " nm";
+}
+
+// A rig scene's band cameras, the camera whose poses they follow, and its
+// unit, which decides whether lever arms and corrections read in cm.
+std::string rig_line(const io::TransformsRig& rig) {
+  std::string out = std::to_string(rig.cameras.size()) + " band cameras, posed from camera " +
+                    std::to_string(rig.reference_camera);
+  if (const io::RigCameraInfo* reference = rig.camera(rig.reference_camera))
+    if (!reference->band.empty()) out += " (" + reference->band + ")";
+  if (rig.unit_m > 0)
+    return out + "; " + nm(rig.unit_m) + " m per scene unit (corrections and lever arms in cm)";
+  return out + "; scene unit unknown (lever arms in scene units, not cm)";
 }
 
 void print_text(const io::Scene& scene, const io::SceneReport& r, const BorderCheck& border,
@@ -263,6 +281,7 @@ void print_text(const io::Scene& scene, const io::SceneReport& r, const BorderCh
       << (scene.georef ? io::describe_georeference(*scene.georef)
                        : std::string("none (no georef.json: not placed on the earth)"))
       << "\n";
+  if (scene.rig) out << "rig         " << rig_line(*scene.rig) << "\n";
   for (const auto& note : scene.notes) out << "  note: " << note << "\n";
   if (scene.warnings.empty() && r.errors.empty()) {
     out << "problems    none\n";

@@ -366,6 +366,11 @@ TEST(RigCli, PosesInAnUnknownUnitTakeTheGeoreferencesScale) {
   const double scale = read_json(root / "scene" / "georef.json")["scene_to_crs"]["scale"];
   EXPECT_NEAR(scale, 0.5, 1e-6);
   EXPECT_EQ(read_json(root / "scene" / "transforms.json")["rig"]["unit_m"].get<double>(), scale);
+  ASSERT_EQ(ddhgs("info " + (root / "scene").string(), &out), 0) << out;
+  EXPECT_NE(out.find("rig         5 band cameras, posed from camera "), std::string::npos) << out;
+  EXPECT_NE(out.find("; 0.5 m per scene unit (corrections and lever arms in cm)"),
+            std::string::npos)
+      << out;
 }
 
 // COLMAP poses the reference camera's images; every band camera follows by
