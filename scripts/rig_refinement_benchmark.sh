@@ -14,8 +14,8 @@
 # known_second to train; default the first three). drifted_second trains the drifted rig again with
 # drifted_refined's corrections held (camera_refinement.rig_start, rates 0,
 # no warm-up; without DDHGS_RIG_TRAIN): the two-pass procedure.
-# known_refined trains the drifted rig with its lever arms known (the true
-# offsets from synth.json in cm, as a measurement of the rig would give
+# known_refined trains the drifted rig with its lever arms known (synth's
+# lever_arms.json: the true offsets in cm, as the rig's drawing would give
 # them, through camera_refinement.rig_start, held with rig_offset_lr=0;
 # rotation rate 1e-3 and an alignment phase of 0.4), and known_second
 # holds its corrections in a second pass; neither takes DDHGS_RIG_TRAIN.
@@ -77,15 +77,8 @@ if [[ " $runs " == *" drifted_second "* ]]; then
     --set camera_refinement.rig_warmup_fraction=0
 fi
 if [[ " $runs " == *" known_refined "* ]]; then
-  python3 - "$work/drifted.synth/synth.json" "$work/lever_arms.json" <<'PY'
-import json, sys
-truth = json.load(open(sys.argv[1]))
-arms = [{"rig_camera": c["rig_index"], "offset_cm": c["true_offset_cm"]}
-        for c in truth["cameras"] if c["rig_index"] != 1]
-json.dump({"cameras": arms}, open(sys.argv[2], "w"), indent=2)
-PY
   DDHGS_RIG_TRAIN="" train drifted known_refined --set camera_refinement.rig=true \
-    --set camera_refinement.rig_start="$work/lever_arms.json" \
+    --set camera_refinement.rig_start="$work/drifted.synth/lever_arms.json" \
     --set camera_refinement.rig_offset_lr=0 --set camera_refinement.rig_rotation_lr=1e-3 \
     --set camera_refinement.rig_align_fraction=0.4
 fi

@@ -395,6 +395,20 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     }
     j["panel_albedo"] = albedo;
     io::write_file_atomically(tmp / "synth.json", j.dump(2) + "\n");
+    // The rig's lever arms as its maker's drawing gives them (the true
+    // offsets; the turns are what drifts), in the form
+    // camera_refinement.rig_start reads.
+    if (config.rig_offset_cm > 0) {
+      nlohmann::json arms = nlohmann::json::array();
+      for (size_t i = 0; i < rig.size(); ++i)
+        if (rig[i].index != 1)
+          arms.push_back({{"rig_camera", rig[i].index},
+                          {"band", rig[i].name},
+                          {"offset_cm", scaled(drift[i].offset, 100)}});
+      const nlohmann::json file = {{"axes", "camera 1's (OpenCV: x right, y down, z forward)"},
+                                   {"cameras", arms}};
+      io::write_file_atomically(tmp / "lever_arms.json", file.dump(2) + "\n");
+    }
     result.views = int(references.size() * rig.size());
     result.points = int(count);
   });

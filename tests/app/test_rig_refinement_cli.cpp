@@ -41,6 +41,7 @@ void make_drifted_rig(const fs::path& root, const std::string& size) {
   ASSERT_EQ(
       test::process_with_true_poses(root / "rig", root / "scene", "--reference-camera 1", &out), 0)
       << out;
+  EXPECT_FALSE(fs::exists(root / "rig" / "lever_arms.json"));  // no offsets, no lever arms
 }
 
 TEST(RigRefinementCli, TrainingFindsTheTurnedCamerasAndResumesWithThem) {
@@ -189,7 +190,7 @@ TEST(RigRefinementCli, ASecondRunStartsFromTheFirstsCorrections) {
 }
 
 TEST(RigRefinementCli, KnownLeverArmsAreHeldWhileTheTurnsAreFound) {
-  // The rig's centre offsets given in cm (a lever arm measurement: here the
+  // The rig's centre offsets given in cm (its lever arms: synth writes the
   // truth's) through camera_refinement.rig_start, held with
   // rig_offset_lr=0: the offsets stay as given and the turns, no longer
   // traded against them, are found closer than with the offsets learned.
@@ -203,20 +204,21 @@ TEST(RigRefinementCli, KnownLeverArmsAreHeldWhileTheTurnsAreFound) {
             0)
       << out;
   ASSERT_EQ(test::process_with_true_poses(rig, scene, "--reference-camera 1", &out), 0) << out;
+  // synth's lever_arms.json: each band camera's true offset, as a drawing
+  // of the rig gives it.
   const json truth = read_json(rig / "synth.json");
-  json arms = {{"cameras", json::array()}};
-  for (const json& c : truth["cameras"])
-    if (c["rig_index"] != 1)
-      arms["cameras"].push_back(
-          {{"rig_camera", c["rig_index"]}, {"offset_cm", c["true_offset_cm"]}});
-  io::write_file_atomically(root / "lever_arms.json", arms.dump());
+  const json arms = read_json(rig / "lever_arms.json");
+  ASSERT_EQ(arms["cameras"].size(), 4u);
+  for (const json& c : arms["cameras"])
+    EXPECT_EQ(c["offset_cm"],
+              truth["cameras"][size_t(c["rig_camera"].get<int>() - 1)]["true_offset_cm"]);
   const std::string train = "train " + scene.string() +
                             " --preset demo --seed 0 --iterations 600"
                             " --set camera_refinement.rig=true"
                             " --set camera_refinement.rig_rotation_lr=1e-3"
                             " --set camera_refinement.rig_align_fraction=0.4";
   const std::string known =
-      " --set camera_refinement.rig_start=" + (root / "lever_arms.json").string() +
+      " --set camera_refinement.rig_start=" + (rig / "lever_arms.json").string() +
       " --set camera_refinement.rig_offset_lr=0";
   ASSERT_EQ(ddhgs(train + known + " --out " + (root / "known").string(), &out), 0) << out;
   ASSERT_EQ(ddhgs(train + " --out " + (root / "learned").string(), &out), 0) << out;
