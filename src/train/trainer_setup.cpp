@@ -287,6 +287,13 @@ void Trainer::build_modules() {
                                   start);
       if (!auxiliary_) core::log_info("rig refinement: the band cameras start from " + start);
     }
+    // Turns and offsets learned together trade against each other (a turn
+    // and a sideways move shift the image alike); known lever arms avoid it.
+    if (start.empty() && cameras.rig_offset_lr > 0 && cameras.rig_rotation_lr > 0 && !auxiliary_)
+      core::log_info(
+          "rig refinement: turns and offsets learn together; where the rig's lever arms are "
+          "known, give them (camera_refinement.rig_start with offset_cm, rig_offset_lr=0) and the "
+          "turns are found far closer (docs/commands.md)");
     if (pivot > 0 && !auxiliary_)
       core::log_info("rig refinement: band cameras turn about the point " + core::fixed(pivot, 3) +
                      " scene units ahead of them (camera_refinement.rig_pivot)");

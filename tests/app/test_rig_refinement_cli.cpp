@@ -56,6 +56,9 @@ TEST(RigRefinementCli, TrainingFindsTheTurnedCamerasAndResumesWithThem) {
       ddhgs(train + (root / "run").string() + " --iterations 600 --checkpoint-every 300", &out), 0)
       << out;
   EXPECT_NE(out.find("rig camera 2 (Green): turned"), std::string::npos) << out;
+  EXPECT_NE(out.find("turns and offsets learn together; where the rig's lever arms are known"),
+            std::string::npos)
+      << out;
 
   // Each camera's correction against the truth: from 1 degree off to about
   // half of it in 600 iterations at this size (0.43-0.54 degrees measured
@@ -221,6 +224,7 @@ TEST(RigRefinementCli, KnownLeverArmsAreHeldWhileTheTurnsAreFound) {
       " --set camera_refinement.rig_start=" + (rig / "lever_arms.json").string() +
       " --set camera_refinement.rig_offset_lr=0";
   ASSERT_EQ(ddhgs(train + known + " --out " + (root / "known").string(), &out), 0) << out;
+  EXPECT_EQ(out.find("turns and offsets learn together"), std::string::npos) << out;
   ASSERT_EQ(ddhgs(train + " --out " + (root / "learned").string(), &out), 0) << out;
   // Each camera's rotation error (degrees) and offset error (cm).
   auto errors = [&](const fs::path& run) {
