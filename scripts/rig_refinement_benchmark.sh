@@ -68,26 +68,21 @@ runs="${DDHGS_RIG_RUNS:-clean_run drifted_refined drifted_plain}"
 [[ " $runs " == *" clean_run "* ]] && train clean clean_run
 [[ " $runs " == *" drifted_refined "* ]] && train drifted drifted_refined --set camera_refinement.rig=true
 [[ " $runs " == *" drifted_plain "* ]] && train drifted drifted_plain
-if [[ " $runs " == *" drifted_second "* ]]; then
-  test -f "$work/drifted_refined/rig_corrections.json" ||
-    { echo "rig_refinement_benchmark: drifted_second needs drifted_refined first" >&2; exit 1; }
-  DDHGS_RIG_TRAIN="" train drifted drifted_second --set camera_refinement.rig=true \
-    --set camera_refinement.rig_start="$work/drifted_refined/rig_corrections.json" \
+second_pass() {  # FIRST RUN: the drifted rig trained with FIRST's corrections held
+  local first=$1 run=$2
+  test -f "$work/$first/rig_corrections.json" ||
+    { echo "rig_refinement_benchmark: $run needs $first first" >&2; exit 1; }
+  DDHGS_RIG_TRAIN="" train drifted "$run" --set camera_refinement.rig=true \
+    --set camera_refinement.rig_start="$work/$first/rig_corrections.json" \
     --set camera_refinement.rig_rotation_lr=0 --set camera_refinement.rig_offset_lr=0 \
     --set camera_refinement.rig_warmup_fraction=0
-fi
+}
+[[ " $runs " == *" drifted_second "* ]] && second_pass drifted_refined drifted_second
 if [[ " $runs " == *" known_refined "* ]]; then
   DDHGS_RIG_TRAIN="" train drifted known_refined --set camera_refinement.rig=true \
     --set camera_refinement.rig_start="$work/drifted.synth/lever_arms.json" \
     --set camera_refinement.rig_offset_lr=0 --set camera_refinement.rig_rotation_lr=1e-3 \
     --set camera_refinement.rig_align_fraction=0.4
 fi
-if [[ " $runs " == *" known_second "* ]]; then
-  test -f "$work/known_refined/rig_corrections.json" ||
-    { echo "rig_refinement_benchmark: known_second needs known_refined first" >&2; exit 1; }
-  DDHGS_RIG_TRAIN="" train drifted known_second --set camera_refinement.rig=true \
-    --set camera_refinement.rig_start="$work/known_refined/rig_corrections.json" \
-    --set camera_refinement.rig_rotation_lr=0 --set camera_refinement.rig_offset_lr=0 \
-    --set camera_refinement.rig_warmup_fraction=0
-fi
+[[ " $runs " == *" known_second "* ]] && second_pass known_refined known_second
 echo "rig-refinement-benchmark: $iterations iterations, work folder $work"

@@ -28,20 +28,31 @@ using test::ddhgs;
 
 using test::read_json;
 
-// The synthetic rig (`synth --preset rig` with `size`: width, height and
-// captures) with every band camera but camera 1 turned by 1 degree, in
-// root/rig, processed with camera 1's true poses into root/scene.
-void make_drifted_rig(const fs::path& root, const std::string& size) {
+// The synthetic rig (`synth --preset rig` with `flags`: width, height,
+// captures and any offset) with every band camera but camera 1 turned by 1
+// degree, in root/rig, processed with camera 1's true poses into root/scene.
+void make_drifted_rig(const fs::path& root, const std::string& flags) {
   std::string out;
   ASSERT_EQ(
-      ddhgs("synth --preset rig " + size + " --rig-perturb-deg 1 --out " + (root / "rig").string(),
+      ddhgs("synth --preset rig " + flags + " --rig-perturb-deg 1 --out " + (root / "rig").string(),
             &out),
       0)
       << out;
   ASSERT_EQ(
       test::process_with_true_poses(root / "rig", root / "scene", "--reference-camera 1", &out), 0)
       << out;
-  EXPECT_FALSE(fs::exists(root / "rig" / "lever_arms.json"));  // no offsets, no lever arms
+}
+
+// The distance (degrees) between a camera's entry of rig_corrections.json
+// and its true turn in synth.json.
+double rotation_error_deg(const json& correction, const json& truth) {
+  const json& t = truth["cameras"][size_t(correction["rig_camera"].get<int>() - 1)];
+  double error = 0;
+  for (int k = 0; k < 3; ++k)
+    error += std::pow(correction["rotation_rad"][k].get<double>() * 180 / M_PI -
+                          t["true_rotation_error_deg"][k].get<double>(),
+                      2);
+  return std::sqrt(error);
 }
 
 TEST(RigRefinementCli, TrainingFindsTheTurnedCamerasAndResumesWithThem) {
@@ -49,6 +60,7 @@ TEST(RigRefinementCli, TrainingFindsTheTurnedCamerasAndResumesWithThem) {
   const fs::path rig = root / "rig", scene = root / "scene";
   std::string out;
   ASSERT_NO_FATAL_FAILURE(make_drifted_rig(root, "--width 64 --height 48 --views 10"));
+  EXPECT_FALSE(fs::exists(rig / "lever_arms.json"));  // no offsets, no lever arms
   fs::copy(rig / "truth" / "clean", scene / "clean");
   const std::string train =
       "train " + scene.string() + " --preset demo --seed 0 --set camera_refinement.rig=true --out ";
@@ -68,15 +80,8 @@ TEST(RigRefinementCli, TrainingFindsTheTurnedCamerasAndResumesWithThem) {
   const json found = read_json(root / "run" / "rig_corrections.json");
   ASSERT_EQ(found["cameras"].size(), 4u);
   EXPECT_EQ(found["unit_m"].get<double>(), 1.0);
-  for (const json& c : found["cameras"]) {
-    const json& t = truth["cameras"][size_t(c["rig_camera"].get<int>() - 1)];
-    double error = 0;
-    for (int k = 0; k < 3; ++k)
-      error += std::pow(c["rotation_rad"][k].get<double>() * 180 / M_PI -
-                            t["true_rotation_error_deg"][k].get<double>(),
-                        2);
-    EXPECT_LT(std::sqrt(error), 0.65) << "camera " << c["rig_camera"];
-  }
+  for (const json& c : found["cameras"])
+    EXPECT_LT(rotation_error_deg(c, truth), 0.65) << "camera " << c["rig_camera"];
   EXPECT_TRUE(read_json(root / "run" / "train_summary.json").contains("rig_corrections"));
 
   // Resumed from its checkpoint at iteration 300: the same corrections as
@@ -200,13 +205,8 @@ TEST(RigRefinementCli, KnownLeverArmsAreHeldWhileTheTurnsAreFound) {
   const fs::path root = test::temp_dir("rig_lever_arms");
   const fs::path rig = root / "rig", scene = root / "scene";
   std::string out;
-  ASSERT_EQ(ddhgs("synth --preset rig --width 64 --height 48 --views 10 --rig-perturb-deg 1 "
-                  "--rig-offset-cm 10 --out " +
-                      rig.string(),
-                  &out),
-            0)
-      << out;
-  ASSERT_EQ(test::process_with_true_poses(rig, scene, "--reference-camera 1", &out), 0) << out;
+  ASSERT_NO_FATAL_FAILURE(
+      make_drifted_rig(root, "--width 64 --height 48 --views 10 --rig-offset-cm 10"));
   // synth's lever_arms.json: each band camera's true offset, as a drawing
   // of the rig gives it.
   const json truth = read_json(rig / "synth.json");
@@ -232,14 +232,10 @@ TEST(RigRefinementCli, KnownLeverArmsAreHeldWhileTheTurnsAreFound) {
     const json found = read_json(run / "rig_corrections.json");
     for (const json& c : found["cameras"]) {
       const json& t = truth["cameras"][size_t(c["rig_camera"].get<int>() - 1)];
-      double r = 0, o = 0;
-      for (int k = 0; k < 3; ++k) {
-        r += std::pow(c["rotation_rad"][k].get<double>() * 180 / M_PI -
-                          t["true_rotation_error_deg"][k].get<double>(),
-                      2);
+      double o = 0;
+      for (int k = 0; k < 3; ++k)
         o += std::pow(c["offset_cm"][k].get<double>() - t["true_offset_cm"][k].get<double>(), 2);
-      }
-      e.emplace_back(std::sqrt(r), std::sqrt(o));
+      e.emplace_back(rotation_error_deg(c, truth), std::sqrt(o));
     }
     return e;
   };
