@@ -7,14 +7,18 @@
 # (eval), PSNR in the blocks' overlap zones and elsewhere, in the held-out
 # captures and in the orthomosaic against the truth's orthographic
 # reflectance (scripts/lib/block_zones.py), peak memory and CPU time of
-# every run. The blocks are merged twice: cross-faded across the seams (the
+# every run; the held-out figures over the flight's own held-out captures
+# and, apart, over novel views between its captures and lines (synth
+# --novel-views: 33 on the default 4 x 12 grid), which see every overlap
+# zone. The blocks are merged twice: cross-faded across the seams (the
 # default, merged/) and cut at the cell borders (--seam-blend 0, merged-cut/).
 #
 #   scripts/blocks_benchmark.sh [OUT]
 #
 # Environment: DDHGS (default build/ddhgs), VIEWS (48), LINES (4), WIDTH
 # (96), HEIGHT (72), ITERATIONS (of the single run; 3000), PRESET (demo),
-# BLOCKS (2x2), SEED (of the flight; 0), TRAIN_SEED (of every training; 0),
+# BLOCKS (2x2), NOVEL (1: the novel views; 0: the flight's own held-out
+# captures only), SEED (of the flight; 0), TRAIN_SEED (of every training; 0),
 # BLOCK_SET (more words for each block's train only, e.g. "--set
 # densify.grad_threshold=0.0004", to try a setting on the blocks against the
 # same single model), PYTHON (a python3 with numpy; default /usr/bin/python3;
@@ -26,6 +30,8 @@ out="${1:-/tmp/ddhgs-blocks-benchmark}"
 views="${VIEWS:-48}" lines="${LINES:-4}" width="${WIDTH:-96}" height="${HEIGHT:-72}"
 iterations="${ITERATIONS:-3000}" preset="${PRESET:-demo}" grid="${BLOCKS:-2x2}" seed="${SEED:-0}"
 train_seed="${TRAIN_SEED:-0}"
+novel=()
+[[ "${NOVEL:-1}" == 0 ]] || novel=(--novel-views)
 read -r -a block_set <<<"${BLOCK_SET:-}"
 python="${PYTHON:-/usr/bin/python3}"
 rm -rf "$out"
@@ -41,7 +47,7 @@ timed() {
 }
 
 "$ddhgs" -q synth --preset rig-nadir --views "$views" --lines "$lines" --field-spacing 2 \
-  --width "$width" --height "$height" --supersample 2 --seed "$seed" --out "$out/flight"
+  --width "$width" --height "$height" --supersample 2 --seed "$seed" "${novel[@]}" --out "$out/flight"
 scene="$out/flight/cubes"
 # The cubes lie in the synthetic world's frame, which maps to the projected
 # CRS by the translation synth.json records: the scene's exact georeference

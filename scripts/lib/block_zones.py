@@ -3,7 +3,8 @@
 blocks' margined cells) and over the rest (scripts/blocks_benchmark.sh):
 
 - held-out: the held-out captures' renders against the clean truth, a pixel
-  in the zones when its ground point is; beside the runs, two model-free
+  in the zones when its ground point is; the flight's own held-out captures
+  and the novel views between its captures (synth --novel-views) apart; beside the runs, two model-free
   references in the same pixels: the noisy capture itself and the clean
   truth blurred by a 3x3 box (a model that is exact but loses fine detail),
   and the share of plant pixels (truth NDVI > 0.4) in each, with the zones'
@@ -109,8 +110,19 @@ def zone_figures(error, zone, plant):
 
 
 def held_out(scene_dir, scene, blocks, runs):
+    """The held-out views' figures: the flight's own held-out captures
+    (`held_out` lines) and, when the scene has them (synth --novel-views),
+    the novel views between the flight's captures (`novel` lines), apart."""
     folder = os.path.join(runs[0], "renders", "test")
     names = sorted(f[:-4] for f in os.listdir(folder) if f.endswith(".npy"))
+    groups = [("held_out", [n for n in names if not n.startswith("NOVEL_")]),
+              ("novel", [n for n in names if n.startswith("NOVEL_")])]
+    for label, group in groups:
+        if group:
+            held_out_group(scene_dir, scene, blocks, runs, label, group)
+
+
+def held_out_group(scene_dir, scene, blocks, runs, label, names):
     errors = {r: [] for r in runs + ["noisy capture", "truth, 3x3 box"]}
     zones, plant = [], []
     for name in names:
@@ -124,12 +136,13 @@ def held_out(scene_dir, scene, blocks, runs):
         for key, image in images.items():
             errors[key].append(((image.astype(np.float64) - truth) ** 2).mean(-1).ravel())
     zone, plant = np.concatenate(zones), np.concatenate(plant)
-    print(json.dumps({"held_out_views": len(names), "zone_pixels": int(zone.sum()),
+    print(json.dumps({label + "_views": len(names), "zone_pixels": int(zone.sum()),
                       "rest_pixels": int((~zone).sum()),
                       "plant_share_zone": round(float(plant[zone].mean()), 3),
                       "plant_share_rest": round(float(plant[~zone].mean()), 3)}))
     for key, e in errors.items():
-        print(json.dumps({"held_out": key, **zone_figures(np.concatenate(e), zone, plant)}))
+        e = np.concatenate(e)
+        print(json.dumps({label: key, "all_db": psnr(e), **zone_figures(e, zone, plant)}))
 
 
 def read_geotiff(path):

@@ -21,6 +21,7 @@ struct SynthArgs {
   bool no_ground = false;
   bool noisy_edges = false;
   bool gcp_targets = false;
+  bool novel_views = false;
   bool vary = false;
   std::string light_factors;  // comma-separated, one per capture
   std::string gps_origin;     // LAT,LON
@@ -77,6 +78,7 @@ synth::SynthConfig resolve(const SynthArgs& a, CLI::App* cmd) {
   if (a.no_ground) c.ground = false;
   if (a.noisy_edges) c.noisy_edges = true;
   if (a.gcp_targets) c.gcp_targets = true;
+  if (a.novel_views) c.novel_views = true;
   return c;
 }
 
@@ -152,6 +154,11 @@ Action setup(CLI::App& parent) {
                 "rig-nadir: print the ground control points on the ground as survey targets "
                 "(black and white 2 x 2 checkers, 10 ground pixels a side, centred on each "
                 "point); other pixels stay as they are");
+  cmd->add_flag("--novel-views", args->novel_views,
+                "rig-nadir: cubes/ also gets held-out captures the flight did not take, "
+                "midway between its neighbouring captures and lines (NOVEL_NNNN, in the test "
+                "split beside the flight's own held-out captures), to measure a model over the "
+                "whole survey");
   cmd->add_flag("--vary", args->vary,
                 "A randomised variant of the preset drawn from --seed (plant shape, size and "
                 "leaf count, leaf, pot, soil, ground and backdrop spectra, light direction, level "

@@ -150,10 +150,10 @@ void validate(const SynthConfig& c) {
                 "synth: expected --altitude 0 (automatic) or 1.5 to 1000 m");
   core::require(c.field_spacing_m == 0 || (c.field_spacing_m >= 1.5 && c.field_spacing_m <= 100),
                 "synth: expected --field-spacing 0 (one plant) or 1.5 to 100 m");
-  core::require(
-      c.nadir || (c.lines == 1 && c.altitude_m == 0 && c.field_spacing_m == 0 && !c.gcp_targets),
-      "synth: --lines, --altitude, --field-spacing and --gcp-targets need --preset "
-      "rig-nadir");
+  core::require(c.nadir || (c.lines == 1 && c.altitude_m == 0 && c.field_spacing_m == 0 &&
+                            !c.gcp_targets && !c.novel_views),
+                "synth: --lines, --altitude, --field-spacing, --gcp-targets and --novel-views need "
+                "--preset rig-nadir");
   core::require(c.gps_noise_m >= 0 && c.gps_noise_m <= 100,
                 "synth: expected 0 <= --gps-noise <= 100 (metres)");
   core::require(!c.rig || !c.vary,

@@ -80,6 +80,12 @@ struct SynthConfig {
   // survey targets, black and white 2 x 2 checkers 10 of the flight's
   // ground pixels a side, centred on each point (NE and SW quarters black).
   bool gcp_targets = false;
+  // With nadir: cubes/ also holds held-out captures that the flight did not
+  // take, midway between its neighbouring captures and lines
+  // (synth/survey.h: between_captures), as NOVEL_NNNN in its test split
+  // beside the flight's own held-out captures, so that a model is measured
+  // over the whole survey and not only where the split's captures fall.
+  bool novel_views = false;
   // A randomised variant of the preset's plant and light, drawn from the
   // seed (synth/variant.h: draw_variant); the framing's part, vary_framing,
   // is applied to the fields above before flags override them.

@@ -15,6 +15,7 @@
 #include "io/ply/ply.h"
 #include "io/rig/rig_capture.h"
 #include "io/rig/rig_radiometry.h"
+#include "io/scene/scene.h"
 #include "io/transforms/transforms.h"
 #include "synth/geo_truth.h"
 #include "synth/render.h"
@@ -140,6 +141,9 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     const Flight flight{config.lines, config.overlap, config.side_overlap, config.altitude_m};
     const std::vector<core::Camera> references =
         config.nadir ? nadir_survey(scene, options, flight) : turntable_rig(scene, options);
+    // Before the field grows the ground (the automatic height depends on it).
+    const std::vector<core::Camera> novel =
+        config.novel_views ? between_captures(scene, options, flight) : std::vector<core::Camera>{};
     if (config.field_spacing_m > 0)
       plant_field(scene, references, config.field_spacing_m, config.seed);
     const core::Intrinsics& k = references.front().intrinsics;
@@ -236,7 +240,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     const torch::Tensor band_order =
         torch::tensor(std::vector<int64_t>(order.begin(), order.end()));
     std::vector<float> xyz, spectra;
-    core::ProgressBar bar("synth rig", int64_t(references.size()));
+    core::ProgressBar bar("synth rig", int64_t(references.size() + novel.size()));
     for (int c = 0; c < int(references.size()); ++c) {
       char stem[32];
       std::snprintf(stem, sizeof stem, "IMG_%04d", c);
@@ -303,6 +307,42 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
       }
       bar.update(c + 1);
     }
+    // Held-out captures the flight did not take: cubes only (no raw
+    // captures, no points), each under the survey's nominal light, in the
+    // test split beside the flight's own held-out captures.
+    if (!novel.empty()) {
+      std::vector<int> train_views, test_views;
+      io::hypernerf_split(int(references.size()), train_views, test_views);
+      auto key = [](const char* prefix, int i) {
+        char stem[32];
+        std::snprintf(stem, sizeof stem, "%s_%04d", prefix, i);
+        return std::string(stem);
+      };
+      for (int c : train_views)
+        cubes.train_files.push_back("hyperspectral/" + key("IMG", c) + ".npy");
+      for (int c : test_views)
+        cubes.test_files.push_back("hyperspectral/" + key("IMG", c) + ".npy");
+      for (int c = 0; c < int(novel.size()); ++c) {
+        std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), uint32_t(c),
+                          0x40e1du};
+        std::mt19937_64 rng(seq);
+        const core::Camera& camera = novel[size_t(c)];
+        const torch::Tensor clean = render_clean(scene, setup, camera, config.supersample);
+        const torch::Tensor noisy = add_noise(clean, setup, rng);
+        const std::string name = key("NOVEL", c) + ".npy";
+        io::write_npy(tmp / "cubes" / "hyperspectral" / name,
+                      noisy.index_select(2, band_order).contiguous());
+        io::write_npy(tmp / "cubes" / "clean" / name,
+                      clean.index_select(2, band_order).contiguous());
+        io::TransformsFrame frame;
+        frame.hyperspectral_file_path = "hyperspectral/" + name;
+        frame.intrinsics = camera.intrinsics;
+        frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(camera.world_to_camera);
+        cubes.frames.push_back(frame);
+        cubes.test_files.push_back(frame.hyperspectral_file_path);
+        bar.update(int64_t(references.size()) + c + 1);
+      }
+    }
     bar.finish();
     io::PointCloud cloud;
     const int64_t count = int64_t(xyz.size() / 3);
@@ -337,6 +377,11 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
       j["altitude_m"] = references.front().camera_to_world().translation().z;
       j["field_spacing_m"] = config.field_spacing_m;
       j["plants"] = scene.plants.size();
+      if (!novel.empty())
+        j["novel_views"] = {
+            {"count", novel.size()},
+            {"files", "cubes/hyperspectral/NOVEL_NNNN.npy (cubes/ only, its test split)"},
+            {"where", "midway between neighbouring captures and lines, the flight's height"}};
     }
     j["light_factors"] = light;
     j["supersample"] = config.supersample;

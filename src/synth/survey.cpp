@@ -9,39 +9,77 @@
 namespace ddhgs::synth {
 using core::Vec3;
 
-std::vector<core::Camera> nadir_survey(const PlantScene& scene, const RigOptions& options,
-                                       const Flight& flight) {
+namespace {
+
+// A nadir capture at (x, y, height): image x along +x, image y along -y.
+core::Camera nadir_camera(const core::Intrinsics& intr, double x, double y, double height) {
+  core::Camera camera;
+  camera.intrinsics = intr;
+  camera.world_to_camera =
+      core::look_at(Vec3{x, y, height}, Vec3{x, y, 0}, Vec3{0, 1, 0});  // looking down (-z)
+  return camera;
+}
+
+// The survey's grid: its height, the steps along and across the lines and
+// the grid's centre.
+struct SurveyGrid {
+  core::Intrinsics intr;
+  double height = 0, step = 0, side_step = 0;
+  int per_line = 0;
+  Vec3 centre;
+  // Position i (0 .. per_line - 1, fractions between) along line `line`.
+  double x(double i) const { return centre.x + (i - 0.5 * (per_line - 1)) * step; }
+  double y(double line, int lines) const {
+    return centre.y + (line - 0.5 * (lines - 1)) * side_step;
+  }
+};
+
+SurveyGrid survey_grid(const PlantScene& scene, const RigOptions& options, const Flight& flight) {
   core::require(flight.lines >= 1 && options.views % flight.lines == 0 && flight.overlap > 0 &&
                     flight.overlap < 1 && flight.side_overlap >= 0 && flight.side_overlap < 1,
                 "synth: expected views a multiple of lines, 0 < overlap < 1 and "
                 "0 <= side overlap < 1");
-  const core::Intrinsics intr = rig_intrinsics(options);
+  SurveyGrid g;
+  g.intr = rig_intrinsics(options);
   // Flown at least three plant heights up, as a field is flown (the plant's
   // top must stay in view of the neighbouring captures: from a third of the
   // plant's height above it, a strip at 70 % overlap saw each leaf-top once),
   // and high enough that a frame's width covers three quarters of the
   // ground disc's radius.
-  const double height =
+  g.height =
       flight.altitude_m > 0
           ? flight.altitude_m
-          : std::max(0.75 * scene.ground_radius * intr.fx / options.width, 3 * scene.box_max.z);
-  const double step = height * options.width / intr.fx * (1 - flight.overlap);
-  const double side_step = height * options.height / intr.fy * (1 - flight.side_overlap);
-  const int per_line = options.views / flight.lines;
-  const Vec3 centre = scene.centre();
+          : std::max(0.75 * scene.ground_radius * g.intr.fx / options.width, 3 * scene.box_max.z);
+  g.step = g.height * options.width / g.intr.fx * (1 - flight.overlap);
+  g.side_step = g.height * options.height / g.intr.fy * (1 - flight.side_overlap);
+  g.per_line = options.views / flight.lines;
+  g.centre = scene.centre();
+  return g;
+}
+
+}  // namespace
+
+std::vector<core::Camera> nadir_survey(const PlantScene& scene, const RigOptions& options,
+                                       const Flight& flight) {
+  const SurveyGrid g = survey_grid(scene, options, flight);
   std::vector<core::Camera> cameras;
-  for (int line = 0; line < flight.lines; ++line) {
-    const double y = centre.y + (line - 0.5 * (flight.lines - 1)) * side_step;
-    for (int j = 0; j < per_line; ++j) {
-      const int i = line % 2 == 0 ? j : per_line - 1 - j;
-      const double x = centre.x + (i - 0.5 * (per_line - 1)) * step;
-      const Vec3 eye{x, y, height};
-      core::Camera camera;
-      camera.intrinsics = intr;
-      // Looking down (-z); image x along +x (the flight), image y along -y.
-      camera.world_to_camera = core::look_at(eye, Vec3{x, y, 0}, Vec3{0, 1, 0});
-      cameras.push_back(camera);
+  for (int line = 0; line < flight.lines; ++line)
+    for (int j = 0; j < g.per_line; ++j) {
+      const int i = line % 2 == 0 ? j : g.per_line - 1 - j;
+      cameras.push_back(nadir_camera(g.intr, g.x(i), g.y(line, flight.lines), g.height));
     }
+  return cameras;
+}
+
+std::vector<core::Camera> between_captures(const PlantScene& scene, const RigOptions& options,
+                                           const Flight& flight) {
+  const SurveyGrid g = survey_grid(scene, options, flight);
+  std::vector<core::Camera> cameras;
+  const int gaps = std::max(flight.lines - 1, 1);
+  for (int k = 0; k < gaps; ++k) {
+    const double line = flight.lines > 1 ? k + 0.5 : 0;
+    for (int i = 0; i + 1 < g.per_line; ++i)
+      cameras.push_back(nadir_camera(g.intr, g.x(i + 0.5), g.y(line, flight.lines), g.height));
   }
   return cameras;
 }

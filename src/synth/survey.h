@@ -26,6 +26,14 @@ struct Flight {
 std::vector<core::Camera> nadir_survey(const PlantScene& scene, const RigOptions& options,
                                        const Flight& flight);
 
+// Novel viewpoints over the same survey, for measuring a model away from
+// the flight's own captures: one nadir capture (same height, heading and
+// lens) midway between each four neighbouring captures of the grid, or
+// between each two on a single line: (views / lines - 1) x (lines - 1)
+// captures, or views - 1 on one line, ordered line by line along +x.
+std::vector<core::Camera> between_captures(const PlantScene& scene, const RigOptions& options,
+                                           const Flight& flight);
+
 // Grows the scene into a field under the cameras: the ground disc covers
 // every camera's footprint on z = 0, and copies of the plant stand on a grid
 // of spacing_m (metres, at least 1.5) over the footprints' bounding box,

@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <set>
 
 #include "io/blocks/block_grid.h"
@@ -227,6 +228,56 @@ TEST(BlocksCli, LocalScriptTrainsEveryBlockThenMerges) {
   ASSERT_EQ(test::run_command(script, &out), 0) << out;
   EXPECT_EQ(fs::last_write_time(blocks / "block_00" / "run" / "gaussians.ply"), trained);
   EXPECT_TRUE(fs::exists(merged / "gaussians.ply"));
+}
+
+TEST(BlocksCli, NovelViewsAreHeldOutBetweenTheCapturesAndLeaveTheFlightAsItWas) {
+  // The survey above again, with held-out captures between its own: 6
+  // captures a line, two lines, so 5 novel views midway between them.
+  const fs::path root = test::temp_dir("blocks_cli_novel");
+  std::string out;
+  ASSERT_EQ(ddhgs("-q synth --preset rig-nadir --views 12 --lines 2 --field-spacing 1.5 "
+                  "--width 32 --height 24 --supersample 1 --novel-views --out " +
+                      (root / "flight").string(),
+                  &out),
+            0)
+      << out;
+  const fs::path cubes = root / "flight" / "cubes";
+  const auto plain = io::load_scene(survey()), novel = io::load_scene(cubes);
+  auto names = [](const io::Scene& scene, const std::vector<int>& views) {
+    std::vector<std::string> n;
+    for (int v : views) n.push_back(scene.views[size_t(v)].name);
+    std::sort(n.begin(), n.end());
+    return n;
+  };
+  // Training is the flight's, as without the flag, and so are its files.
+  EXPECT_EQ(names(*novel, novel->train), names(*plain, plain->train));
+  std::vector<std::string> expected = names(*plain, plain->test);
+  for (int i = 0; i < 5; ++i) expected.push_back("NOVEL_000" + std::to_string(i));
+  std::sort(expected.begin(), expected.end());
+  EXPECT_EQ(names(*novel, novel->test), expected);
+  for (const auto& entry : fs::directory_iterator(survey() / "hyperspectral"))
+    EXPECT_EQ(io::read_file(entry.path()),
+              io::read_file(cubes / "hyperspectral" / entry.path().filename()))
+        << entry.path();
+  EXPECT_EQ(io::read_file(survey() / "points.ply"), io::read_file(cubes / "points.ply"));
+  // No raw capture for them: the flight did not take them.
+  EXPECT_FALSE(fs::exists(root / "flight" / "captures" / "NOVEL_0000_1.tif"));
+  const json synth = json::parse(io::read_file(root / "flight" / "synth.json"));
+  EXPECT_EQ(synth["novel_views"]["count"].get<int>(), 5);
+  // Partitioned, every novel view is held out in a block that sees it.
+  ASSERT_EQ(
+      ddhgs("-q partition " + cubes.string() + " --blocks 2 --out " + (root / "blocks").string(),
+            &out),
+      0)
+      << out;
+  std::set<std::string> held_out;
+  for (const io::BlockRecord& b : io::read_blocks_file(root / "blocks" / "blocks.json").blocks) {
+    held_out.insert(b.test_views.begin(), b.test_views.end());
+    for (const std::string& v : b.train_views)
+      EXPECT_EQ(v.find("NOVEL_"), std::string::npos) << b.name;
+  }
+  for (int i = 0; i < 5; ++i)
+    EXPECT_EQ(held_out.count("hyperspectral/NOVEL_000" + std::to_string(i) + ".npy"), 1u) << i;
 }
 
 TEST(BlocksCli, BadInputIsOneLineAndLeavesNothing) {

@@ -58,6 +58,42 @@ TEST(Survey, LinesAreSpacedByTheSideOverlapAndFlownBackAndForth) {
   EXPECT_LT(cameras[7].center().x, cameras[4].center().x);
 }
 
+TEST(Survey, NovelViewsLieMidwayBetweenNeighbouringCaptures) {
+  const PlantScene scene = PlantScene::build(0, true);
+  Flight flight;
+  flight.lines = 3;
+  flight.overlap = 0.75;
+  flight.side_overlap = 0.5;
+  const std::vector<core::Camera> cameras = nadir_survey(scene, survey_rig(12), flight);
+  const std::vector<core::Camera> novel = between_captures(scene, survey_rig(12), flight);
+  // (4 - 1) x (3 - 1): each the centre of four neighbouring captures, two
+  // on one line and two on the next (line 1 is flown back: index 7 - i).
+  ASSERT_EQ(novel.size(), 6u);
+  for (int gap = 0; gap < 2; ++gap)
+    for (int i = 0; i < 3; ++i) {
+      auto at = [&](int line, int k) {  // the capture at grid position k of line
+        return cameras[size_t(4 * line + (line % 2 == 0 ? k : 3 - k))].center();
+      };
+      const core::Vec3 mid =
+          (at(gap, i) + at(gap, i + 1) + at(gap + 1, i) + at(gap + 1, i + 1)) * 0.25;
+      const core::Camera& c = novel[size_t(3 * gap + i)];
+      EXPECT_LT((c.center() - mid).norm(), 1e-9) << gap << " " << i;
+      // Same lens and heading as the flight's captures.
+      for (int k = 0; k < 9; ++k)
+        EXPECT_NEAR(c.world_to_camera.rotation().m[k], cameras[0].world_to_camera.rotation().m[k],
+                    1e-12);
+      EXPECT_EQ(c.intrinsics.fx, cameras[0].intrinsics.fx);
+    }
+  // One line: midway between neighbours along it.
+  flight.lines = 1;
+  const std::vector<core::Camera> strip = nadir_survey(scene, survey_rig(5), flight);
+  const std::vector<core::Camera> between = between_captures(scene, survey_rig(5), flight);
+  ASSERT_EQ(between.size(), 4u);
+  for (size_t i = 0; i < between.size(); ++i)
+    EXPECT_LT((between[i].center() - (strip[i].center() + strip[i + 1].center()) * 0.5).norm(),
+              1e-9);
+}
+
 TEST(Survey, FieldCoversEveryFootprintWithPlantsAndGround) {
   PlantScene scene = PlantScene::build(0, true);
   Flight flight;
@@ -97,6 +133,9 @@ TEST(Survey, SynthRefusesLinesThatDoNotDivideTheCaptures) {
   EXPECT_THROW(validate(c), core::Error);
   SynthConfig ring = preset_config("rig");
   ring.lines = 2;
+  EXPECT_THROW(validate(ring), core::Error);
+  ring.lines = 1;
+  ring.novel_views = true;  // no flight lines to fly between
   EXPECT_THROW(validate(ring), core::Error);
 }
 
