@@ -1,8 +1,10 @@
 #!/bin/bash
 # Blocks against one model (docs/benchmarks.md, "Blocks"): a synthetic grid
 # flight (rig-nadir, 5 bands) cut into 2x2 blocks with 20 % margins, each
-# block trained with iterations in proportion to its training views (the
-# same iteration budget per Gaussian as the single run), merged, and
+# block trained with the single run's budget: as many iterations as the
+# single run (each Gaussian optimised as often) and at most the Gaussians it
+# grew to over the number of blocks (densify.max_gaussians: the blocks
+# together no larger than the single model), merged, and
 # compared with one model trained on the whole flight: held-out PSNR
 # (eval), PSNR in the blocks' overlap zones and elsewhere, in the held-out
 # captures and in the orthomosaic against the truth's orthographic
@@ -21,8 +23,13 @@
 # captures only), SEED (of the flight; 0), TRAIN_SEED (of every training; 0),
 # BLOCK_SET (more words for each block's train only, e.g. "--set
 # densify.grad_threshold=0.0004", to try a setting on the blocks against the
-# same single model), PYTHON (a python3 with numpy; default /usr/bin/python3;
-# gdal_translate reads the orthomosaics).
+# same single model), BUDGET (gaussian: the budget above; view: each block
+# iterations in proportion to its training views and no Gaussian cap, each
+# view seen as often as in the single run, the protocol before 2026-12-07
+# afternoon), SINGLE_FROM (the single/ folder of an earlier run of this
+# script with the same flight and seeds, reused instead of trained), PYTHON
+# (a python3 with numpy; default /usr/bin/python3; gdal_translate reads the
+# orthomosaics).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ddhgs="$(realpath "${DDHGS:-build/ddhgs}")"
@@ -61,24 +68,45 @@ json.dump({"crs": "EPSG:%d" % g["epsg"], "epsg": g["epsg"],
           open(sys.argv[1] + "/cubes/georef.json", "w"), indent=2)
 PY
 "$ddhgs" -q partition "$scene" --blocks "$grid" --overlap 0.2 --out "$out/blocks"
-timed single "$ddhgs" -q train "$scene" --out "$out/single" --preset "$preset" \
-  --iterations "$iterations" --seed "$train_seed" --checkpoint-every 0
+if [[ -n "${SINGLE_FROM:-}" ]]; then
+  # A single run of this flight and seeds from an earlier run of this
+  # script (training is deterministic: the same figures to the digit).
+  cp -r "$SINGLE_FROM" "$out/single"
+  rm -rf "$out/single/renders" "$out/single/eval"
+  cp "$(dirname "$SINGLE_FROM")/single.time" "$out/single.time"
+  awk '{printf "single (from %s): %.1f CPU s, peak %.0f MiB\n", "'"$SINGLE_FROM"'", $2 + $3, $4 / 1024}' \
+    "$out/single.time"
+else
+  timed single "$ddhgs" -q train "$scene" --out "$out/single" --preset "$preset" \
+    --iterations "$iterations" --seed "$train_seed" --checkpoint-every 0
+fi
 total=$("$ddhgs" info "$scene" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
+single_gaussians=$("$python" -c 'import json, sys; print(json.load(open(sys.argv[1]))["num_gaussians"])' \
+  "$out/single/train_summary.json")
+blocks=$(ls -d "$out"/blocks/block_* | wc -l)
+cap=$(( (single_gaussians + blocks - 1) / blocks ))
 for block in "$out"/blocks/block_*; do
   name="$(basename "$block")"
   train_views=$("$ddhgs" info "$block" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
-  block_iterations=$(( (iterations * train_views + total / 2) / total ))
-  echo "$name: $train_views of $total training views, $block_iterations iterations"
+  budget=()
+  if [[ "${BUDGET:-gaussian}" == view ]]; then
+    block_iterations=$(( (iterations * train_views + total / 2) / total ))
+  else
+    block_iterations=$iterations
+    budget=(--set "densify.max_gaussians=$cap")
+  fi
+  echo "$name: $train_views of $total training views, $block_iterations iterations${budget[*]:+, at most $cap Gaussians}"
   timed "$name" "$ddhgs" -q train "$block" --out "$block/run" --preset "$preset" \
-    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0 "${block_set[@]}"
+    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0 "${budget[@]}" \
+    "${block_set[@]}"
 done
 "$ddhgs" merge "$out/blocks" --out "$out/merged"
 "$ddhgs" -q merge "$out/blocks" --out "$out/merged-cut" --seam-blend 0
 for run in single merged merged-cut; do
   echo "--- $run"
-  "$ddhgs" eval "$out/$run" 2>&1 | sed -n '/PSNR/,/clean/p'
-  "$ddhgs" -q render "$out/$run" --format npy
-  "$ddhgs" -q render "$out/$run" --ortho
+  "$ddhgs" eval "$out/$run" --data "$scene" 2>&1 | sed -n '/^PSNR/,/clean/p'
+  "$ddhgs" -q render "$out/$run" --format npy --data "$scene"
+  "$ddhgs" -q render "$out/$run" --ortho --data "$scene"
 done
 "$python" scripts/lib/block_zones.py "$scene" "$out/blocks" "$out/single" "$out/merged" \
   "$out/merged-cut"
