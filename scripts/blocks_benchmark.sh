@@ -1,10 +1,8 @@
 #!/bin/bash
 # Blocks against one model (docs/benchmarks.md, "Blocks"): a synthetic grid
 # flight (rig-nadir, 5 bands) cut into 2x2 blocks with 20 % margins, each
-# block trained with the single run's budget: as many iterations as the
-# single run (each Gaussian optimised as often) and at most the Gaussians it
-# grew to over the number of blocks (densify.max_gaussians: the blocks
-# together no larger than the single model), merged, and
+# block trained with iterations in proportion to its training views (each
+# view seen as often as in the single run), merged, and
 # compared with one model trained on the whole flight: held-out PSNR
 # (eval), PSNR in the blocks' overlap zones and elsewhere, in the held-out
 # captures and in the orthomosaic against the truth's orthographic
@@ -23,10 +21,10 @@
 # captures only), SEED (of the flight; 0), TRAIN_SEED (of every training; 0),
 # BLOCK_SET (more words for each block's train only, e.g. "--set
 # densify.grad_threshold=0.0004", to try a setting on the blocks against the
-# same single model), BUDGET (gaussian: the budget above; view: each block
-# iterations in proportion to its training views and no Gaussian cap, each
-# view seen as often as in the single run, the protocol before 2026-12-07
-# afternoon), SINGLE_FROM (the single/ folder of an earlier run of this
+# same single model), BUDGET (view: the budget above; gaussian: every block
+# the single run's iterations and at most its Gaussians over the number of
+# blocks, densify.max_gaussians; tried 2026-12-07, not better on every
+# flight), SINGLE_FROM (the single/ folder of an earlier run of this
 # script with the same flight and seeds, reused instead of trained), PYTHON
 # (a python3 with numpy; default /usr/bin/python3; gdal_translate reads the
 # orthomosaics).
@@ -89,7 +87,7 @@ for block in "$out"/blocks/block_*; do
   name="$(basename "$block")"
   train_views=$("$ddhgs" info "$block" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
   budget=()
-  if [[ "${BUDGET:-gaussian}" == view ]]; then
+  if [[ "${BUDGET:-view}" == view ]]; then
     block_iterations=$(( (iterations * train_views + total / 2) / total ))
   else
     block_iterations=$iterations
