@@ -154,6 +154,8 @@ void validate(const SynthConfig& c) {
                             !c.gcp_targets && !c.novel_views),
                 "synth: --lines, --altitude, --field-spacing, --gcp-targets and --novel-views need "
                 "--preset rig-nadir");
+  core::require(!c.novel_views || c.views / c.lines >= 2,
+                "synth: --novel-views needs at least two captures a line to lie between");
   core::require(c.gps_noise_m >= 0 && c.gps_noise_m <= 100,
                 "synth: expected 0 <= --gps-noise <= 100 (metres)");
   core::require(!c.rig || !c.vary,

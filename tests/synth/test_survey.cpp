@@ -137,6 +137,11 @@ TEST(Survey, SynthRefusesLinesThatDoNotDivideTheCaptures) {
   ring.lines = 1;
   ring.novel_views = true;  // no flight lines to fly between
   EXPECT_THROW(validate(ring), core::Error);
+  c.field_spacing_m = 0;
+  c.novel_views = true;  // 10 captures on 2 lines: 4 between them
+  EXPECT_NO_THROW(validate(c));
+  c.lines = 10;  // one capture a line: nothing lies between
+  EXPECT_THROW(validate(c), core::Error);
 }
 
 }  // namespace
