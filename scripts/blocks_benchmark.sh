@@ -37,6 +37,9 @@ iterations="${ITERATIONS:-3000}" preset="${PRESET:-demo}" grid="${BLOCKS:-2x2}" 
 train_seed="${TRAIN_SEED:-0}"
 novel=()
 [[ "${NOVEL:-1}" == 0 ]] || novel=(--novel-views)
+budget="${BUDGET:-view}"
+[[ "$budget" == view || "$budget" == gaussian ]] ||
+  { echo "blocks_benchmark: BUDGET=$budget: expected view or gaussian" >&2; exit 1; }
 read -r -a block_set <<<"${BLOCK_SET:-}"
 python="${PYTHON:-/usr/bin/python3}"
 rm -rf "$out"
@@ -79,23 +82,22 @@ else
     --iterations "$iterations" --seed "$train_seed" --checkpoint-every 0
 fi
 total=$("$ddhgs" info "$scene" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
-single_gaussians=$("$python" -c 'import json, sys; print(json.load(open(sys.argv[1]))["num_gaussians"])' \
-  "$out/single/train_summary.json")
-blocks=$(ls -d "$out"/blocks/block_* | wc -l)
-cap=$(( (single_gaussians + blocks - 1) / blocks ))
+cap_set=()
+if [[ "$budget" == gaussian ]]; then
+  single_gaussians=$("$python" -c 'import json, sys; print(json.load(open(sys.argv[1]))["num_gaussians"])' \
+    "$out/single/train_summary.json")
+  blocks=$(ls -d "$out"/blocks/block_* | wc -l)
+  cap=$(( (single_gaussians + blocks - 1) / blocks ))
+  cap_set=(--set "densify.max_gaussians=$cap")
+fi
 for block in "$out"/blocks/block_*; do
   name="$(basename "$block")"
   train_views=$("$ddhgs" info "$block" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
-  budget=()
-  if [[ "${BUDGET:-view}" == view ]]; then
-    block_iterations=$(( (iterations * train_views + total / 2) / total ))
-  else
-    block_iterations=$iterations
-    budget=(--set "densify.max_gaussians=$cap")
-  fi
-  echo "$name: $train_views of $total training views, $block_iterations iterations${budget[*]:+, at most $cap Gaussians}"
+  block_iterations=$iterations
+  [[ "$budget" == gaussian ]] || block_iterations=$(( (iterations * train_views + total / 2) / total ))
+  echo "$name: $train_views of $total training views, $block_iterations iterations${cap_set[*]:+, at most $cap Gaussians}"
   timed "$name" "$ddhgs" -q train "$block" --out "$block/run" --preset "$preset" \
-    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0 "${budget[@]}" \
+    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0 "${cap_set[@]}" \
     "${block_set[@]}"
 done
 "$ddhgs" merge "$out/blocks" --out "$out/merged"

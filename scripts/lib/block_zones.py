@@ -4,8 +4,8 @@ blocks' margined cells) and over the rest (scripts/blocks_benchmark.sh):
 
 - held-out: the held-out captures' renders against the clean truth, a pixel
   in the zones when its ground point is; the flight's own held-out captures
-  and the novel views between its captures (synth --novel-views) apart; beside the runs, two model-free
-  references in the same pixels: the noisy capture itself and the clean
+  and the novel views between its captures (synth --novel-views) apart;
+  beside the runs, two model-free references in the same pixels: the noisy capture itself and the clean
   truth blurred by a 3x3 box (a model that is exact but loses fine detail),
   and the share of plant pixels (truth NDVI > 0.4) in each, with the zones'
   PSNR at the rest's plant share (`zone_at_rest_mix`: the zones' plant and

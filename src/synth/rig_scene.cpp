@@ -70,6 +70,13 @@ std::string band_file(const std::string& stem, int index) {
   return stem + "_" + std::to_string(index) + ".tif";
 }
 
+// A capture's file stem: "IMG_0007" for prefix "IMG" and index 7.
+std::string capture_stem(const char* prefix, int index) {
+  char stem[32];
+  std::snprintf(stem, sizeof stem, "%s_%04d", prefix, index);
+  return stem;
+}
+
 // A band camera's true placement against its factory one: a rotation
 // vector (rad) and a centre offset (m, which are scene units), both in
 // camera 1's axes (the rig's frame; camera 1 has none), so that a point at
@@ -240,27 +247,30 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     const torch::Tensor band_order =
         torch::tensor(std::vector<int64_t>(order.begin(), order.end()));
     std::vector<float> xyz, spectra;
+    // One capture as a registered cube under cubes/: its noisy bands (times
+    // its light factor) and clean ones, and its frame; returns the frame's
+    // file.
+    auto write_cube = [&](const std::string& stem, const core::Camera& camera, std::mt19937_64& rng,
+                          double light_factor) {
+      const torch::Tensor clean = render_clean(scene, setup, camera, config.supersample);
+      const torch::Tensor noisy = add_noise(clean, setup, rng);
+      const std::string name = stem + ".npy";
+      io::write_npy(tmp / "cubes" / "hyperspectral" / name,
+                    (noisy * float(light_factor)).index_select(2, band_order).contiguous());
+      io::write_npy(tmp / "cubes" / "clean" / name, clean.index_select(2, band_order).contiguous());
+      io::TransformsFrame frame;
+      frame.hyperspectral_file_path = "hyperspectral/" + name;
+      frame.intrinsics = camera.intrinsics;
+      frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(camera.world_to_camera);
+      cubes.frames.push_back(frame);
+      return frame.hyperspectral_file_path;
+    };
     core::ProgressBar bar("synth rig", int64_t(references.size() + novel.size()));
     for (int c = 0; c < int(references.size()); ++c) {
-      char stem[32];
-      std::snprintf(stem, sizeof stem, "IMG_%04d", c);
+      const std::string stem = capture_stem("IMG", c);
       std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), uint32_t(c), 0x51600u};
       std::mt19937_64 rng(seq);
-      {
-        const core::Camera& camera = references[size_t(c)];
-        const torch::Tensor clean = render_clean(scene, setup, camera, config.supersample);
-        const torch::Tensor noisy = add_noise(clean, setup, rng);
-        const std::string name = std::string(stem) + ".npy";
-        io::write_npy(tmp / "cubes" / "hyperspectral" / name,
-                      (noisy * float(light[size_t(c)])).index_select(2, band_order).contiguous());
-        io::write_npy(tmp / "cubes" / "clean" / name,
-                      clean.index_select(2, band_order).contiguous());
-        io::TransformsFrame frame;
-        frame.hyperspectral_file_path = "hyperspectral/" + name;
-        frame.intrinsics = camera.intrinsics;
-        frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(camera.world_to_camera);
-        cubes.frames.push_back(frame);
-      }
+      write_cube(stem, references[size_t(c)], rng, light[size_t(c)]);
       for (size_t i = 0; i < rig.size(); ++i) {
         const RigBandCamera& band = rig[i];
         core::Camera camera = references[size_t(c)];
@@ -286,7 +296,7 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
         // own light (its factor), which the DLS record does not show.
         io::write_rig_band_image(
             b, io::radiance_to_counts(b, noisy * float(light[size_t(c)] * band.irradiance / kPi)));
-        const std::string name = std::string(stem) + "_" + std::to_string(band.index) + ".npy";
+        const std::string name = stem + "_" + std::to_string(band.index) + ".npy";
         io::write_npy(tmp / "truth" / "bands" / name, clean.unsqueeze(2));
         io::write_npy(tmp / "truth" / "clean" / name, clean.unsqueeze(2));
         io::TransformsFrame frame;
@@ -313,33 +323,15 @@ SynthResult write_synthetic_rig(const SynthConfig& config, const fs::path& out, 
     if (!novel.empty()) {
       std::vector<int> train_views, test_views;
       io::hypernerf_split(int(references.size()), train_views, test_views);
-      auto key = [](const char* prefix, int i) {
-        char stem[32];
-        std::snprintf(stem, sizeof stem, "%s_%04d", prefix, i);
-        return std::string(stem);
-      };
       for (int c : train_views)
-        cubes.train_files.push_back("hyperspectral/" + key("IMG", c) + ".npy");
+        cubes.train_files.push_back("hyperspectral/" + capture_stem("IMG", c) + ".npy");
       for (int c : test_views)
-        cubes.test_files.push_back("hyperspectral/" + key("IMG", c) + ".npy");
+        cubes.test_files.push_back("hyperspectral/" + capture_stem("IMG", c) + ".npy");
       for (int c = 0; c < int(novel.size()); ++c) {
         std::seed_seq seq{uint32_t(config.seed), uint32_t(config.seed >> 32), uint32_t(c),
                           0x40e1du};
         std::mt19937_64 rng(seq);
-        const core::Camera& camera = novel[size_t(c)];
-        const torch::Tensor clean = render_clean(scene, setup, camera, config.supersample);
-        const torch::Tensor noisy = add_noise(clean, setup, rng);
-        const std::string name = key("NOVEL", c) + ".npy";
-        io::write_npy(tmp / "cubes" / "hyperspectral" / name,
-                      noisy.index_select(2, band_order).contiguous());
-        io::write_npy(tmp / "cubes" / "clean" / name,
-                      clean.index_select(2, band_order).contiguous());
-        io::TransformsFrame frame;
-        frame.hyperspectral_file_path = "hyperspectral/" + name;
-        frame.intrinsics = camera.intrinsics;
-        frame.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(camera.world_to_camera);
-        cubes.frames.push_back(frame);
-        cubes.test_files.push_back(frame.hyperspectral_file_path);
+        cubes.test_files.push_back(write_cube(capture_stem("NOVEL", c), novel[size_t(c)], rng, 1));
         bar.update(int64_t(references.size()) + c + 1);
       }
     }

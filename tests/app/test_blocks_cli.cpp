@@ -22,19 +22,21 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using test::ddhgs;
 
-// A 12-capture survey of two lines over a field, as registered 5-band cubes.
+// A 12-capture survey of two lines over a field into `flight` (more synth
+// flags in `extra`); its registered 5-band cubes.
+fs::path synth_survey(const fs::path& flight, const std::string& extra = "") {
+  std::string out;
+  EXPECT_EQ(ddhgs("-q synth --preset rig-nadir --views 12 --lines 2 --field-spacing 1.5 "
+                  "--width 32 --height 24 --supersample 1 " +
+                      extra + " --out " + flight.string(),
+                  &out),
+            0)
+      << out;
+  return flight / "cubes";
+}
+
 const fs::path& survey() {
-  static const fs::path scene = [] {
-    const fs::path root = test::temp_dir("blocks_cli");
-    std::string out;
-    EXPECT_EQ(ddhgs("-q synth --preset rig-nadir --views 12 --lines 2 --field-spacing 1.5 "
-                    "--width 32 --height 24 --supersample 1 --out " +
-                        (root / "flight").string(),
-                    &out),
-              0)
-        << out;
-    return root / "flight" / "cubes";
-  }();
+  static const fs::path scene = synth_survey(test::temp_dir("blocks_cli") / "flight");
   return scene;
 }
 
@@ -234,14 +236,9 @@ TEST(BlocksCli, NovelViewsAreHeldOutBetweenTheCapturesAndLeaveTheFlightAsItWas) 
   // The survey above again, with held-out captures between its own: 6
   // captures a line, two lines, so 5 novel views midway between them.
   const fs::path root = test::temp_dir("blocks_cli_novel");
+  const fs::path cubes = synth_survey(root / "flight", "--novel-views");
+  ASSERT_TRUE(fs::exists(cubes / "transforms.json"));
   std::string out;
-  ASSERT_EQ(ddhgs("-q synth --preset rig-nadir --views 12 --lines 2 --field-spacing 1.5 "
-                  "--width 32 --height 24 --supersample 1 --novel-views --out " +
-                      (root / "flight").string(),
-                  &out),
-            0)
-      << out;
-  const fs::path cubes = root / "flight" / "cubes";
   const auto plain = io::load_scene(survey()), novel = io::load_scene(cubes);
   auto names = [](const io::Scene& scene, const std::vector<int>& views) {
     std::vector<std::string> n;
