@@ -1,8 +1,10 @@
 #!/bin/bash
 # Blocks against one model (docs/benchmarks.md, "Blocks"): a synthetic grid
 # flight (rig-nadir, 5 bands) cut into 2x2 blocks with 20 % margins, each
-# block trained with iterations in proportion to its training views (each
-# view seen as often as in the single run), merged, and
+# block trained as part of the flight (data.block_as_flight: the single
+# run's iterations over the flight's training views, its own views rendered
+# and the others' steps on momentum alone, so every Gaussian gets the
+# optimiser steps it would get in the single run), merged, and
 # compared with one model trained on the whole flight: held-out PSNR
 # (eval), PSNR in the blocks' overlap zones and elsewhere, in the held-out
 # captures and in the orthomosaic against the truth's orthographic
@@ -17,14 +19,17 @@
 #
 # Environment: DDHGS (default build/ddhgs), VIEWS (48), LINES (4), WIDTH
 # (96), HEIGHT (72), ITERATIONS (of the single run; 3000), PRESET (demo),
-# BLOCKS (2x2), NOVEL (1: the novel views; 0: the flight's own held-out
+# BLOCKS (2x2), OVERLAP (the partition's margin; 0.2), NOVEL (1: the novel views; 0: the flight's own held-out
 # captures only), SEED (of the flight; 0), TRAIN_SEED (of every training; 0),
 # BLOCK_SET (more words for each block's train only, e.g. "--set
 # densify.grad_threshold=0.0004", to try a setting on the blocks against the
-# same single model), BUDGET (view: the budget above; gaussian: every block
-# the single run's iterations and at most its Gaussians over the number of
-# blocks, densify.max_gaussians; tried 2026-12-07, not better on every
-# flight), SINGLE_FROM (the single/ folder of an earlier run of this
+# same single model), BUDGET (flight: the budget above; view: each block a
+# scene of its own, data.block_as_flight=false, with iterations in
+# proportion to its training views, each view seen as often as in the
+# single run, the default until 2026-12-07; gaussian: as view but every
+# block the single run's iterations and at most its Gaussians over the
+# number of blocks, densify.max_gaussians; tried 2026-12-07, not better on
+# every flight), SINGLE_FROM (the single/ folder of an earlier run of this
 # script with the same flight and seeds, reused instead of trained), PYTHON
 # (a python3 with numpy; default /usr/bin/python3; gdal_translate reads the
 # orthomosaics).
@@ -37,9 +42,10 @@ iterations="${ITERATIONS:-3000}" preset="${PRESET:-demo}" grid="${BLOCKS:-2x2}" 
 train_seed="${TRAIN_SEED:-0}"
 novel=()
 [[ "${NOVEL:-1}" == 0 ]] || novel=(--novel-views)
-budget="${BUDGET:-view}"
-[[ "$budget" == view || "$budget" == gaussian ]] ||
-  { echo "blocks_benchmark: BUDGET=$budget: expected view or gaussian" >&2; exit 1; }
+overlap="${OVERLAP:-0.2}"
+budget="${BUDGET:-flight}"
+[[ "$budget" == flight || "$budget" == view || "$budget" == gaussian ]] ||
+  { echo "blocks_benchmark: BUDGET=$budget: expected flight, view or gaussian" >&2; exit 1; }
 read -r -a block_set <<<"${BLOCK_SET:-}"
 python="${PYTHON:-/usr/bin/python3}"
 rm -rf "$out"
@@ -68,7 +74,7 @@ json.dump({"crs": "EPSG:%d" % g["epsg"], "epsg": g["epsg"],
                             "translation": g["world_origin_crs_m"]}},
           open(sys.argv[1] + "/cubes/georef.json", "w"), indent=2)
 PY
-"$ddhgs" -q partition "$scene" --blocks "$grid" --overlap 0.2 --out "$out/blocks"
+"$ddhgs" -q partition "$scene" --blocks "$grid" --overlap "$overlap" --out "$out/blocks"
 if [[ -n "${SINGLE_FROM:-}" ]]; then
   # A single run of this flight and seeds from an earlier run of this
   # script (training is deterministic: the same figures to the digit).
@@ -82,22 +88,23 @@ else
     --iterations "$iterations" --seed "$train_seed" --checkpoint-every 0
 fi
 total=$("$ddhgs" info "$scene" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
-cap_set=()
+budget_set=() cap=""
+[[ "$budget" == flight ]] || budget_set=(--set data.block_as_flight=false)
 if [[ "$budget" == gaussian ]]; then
   single_gaussians=$("$python" -c 'import json, sys; print(json.load(open(sys.argv[1]))["num_gaussians"])' \
     "$out/single/train_summary.json")
   blocks=$(ls -d "$out"/blocks/block_* | wc -l)
   cap=$(( (single_gaussians + blocks - 1) / blocks ))
-  cap_set=(--set "densify.max_gaussians=$cap")
+  budget_set+=(--set "densify.max_gaussians=$cap")
 fi
 for block in "$out"/blocks/block_*; do
   name="$(basename "$block")"
   train_views=$("$ddhgs" info "$block" 2>&1 | sed -n 's/^views .*(train \([0-9]\+\),.*/\1/p')
   block_iterations=$iterations
-  [[ "$budget" == gaussian ]] || block_iterations=$(( (iterations * train_views + total / 2) / total ))
-  echo "$name: $train_views of $total training views, $block_iterations iterations${cap_set[*]:+, at most $cap Gaussians}"
+  [[ "$budget" == view ]] && block_iterations=$(( (iterations * train_views + total / 2) / total ))
+  echo "$name: $train_views of $total training views, $block_iterations iterations${cap:+, at most $cap Gaussians}"
   timed "$name" "$ddhgs" -q train "$block" --out "$block/run" --preset "$preset" \
-    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0 "${cap_set[@]}" \
+    --iterations "$block_iterations" --seed "$train_seed" --checkpoint-every 0 "${budget_set[@]}" \
     "${block_set[@]}"
 done
 "$ddhgs" merge "$out/blocks" --out "$out/merged"

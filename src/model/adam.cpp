@@ -19,6 +19,16 @@ void fused_adam_update(float* param, const float* grad, float* exp_avg, float* e
   const float eps = float(options.eps);
   // Large grains: the loop is memory bound and tiny chunks only add overhead.
   core::parallel_for(0, n, 1 << 15, [&](int64_t begin, int64_t end) {
+    if (grad == nullptr) {
+      for (int64_t i = begin; i < end; ++i) {
+        const float m = exp_avg[i] * beta1;
+        const float v = exp_avg_sq[i] * beta2;
+        exp_avg[i] = m;
+        exp_avg_sq[i] = v;
+        param[i] -= step_size * m / (std::sqrt(v) * inv_sqrt_bias2 + eps);
+      }
+      return;
+    }
     for (int64_t i = begin; i < end; ++i) {
       const float g = grad[i];
       const float m = exp_avg[i] * beta1 + g * one_minus_beta1;
@@ -114,6 +124,17 @@ std::function<void(int64_t, int64_t, const float*)> Adam::row_step(const std::st
     fused_adam_update(param + offset, grad, exp_avg + offset, exp_avg_sq + offset, count * row, lr,
                       step, options);
   };
+}
+
+void Adam::coast(const std::vector<std::string>& names) {
+  torch::NoGradGuard no_grad;
+  for (const std::string& name : names) {
+    AdamGroup& g = group(name);
+    ++g.step;
+    if (g.param.numel() == 0) continue;
+    fused_adam_update(g.param.data_ptr<float>(), nullptr, g.exp_avg.data_ptr<float>(),
+                      g.exp_avg_sq.data_ptr<float>(), g.param.numel(), g.lr, g.step, options_);
+  }
 }
 
 void Adam::zero_grad() {

@@ -58,6 +58,11 @@ class Adam {
   // one row per view when it measured one view: plain Adam would move the
   // others on momentum alone. Bias correction uses the group's step count.
   void step(const std::vector<RowSet>& row_sets);
+  // A step with zero gradients for the groups named (every row): each
+  // moves on its first moment alone and both moments decay, as the
+  // parameters of plain Adam do on a step whose loss does not reach them.
+  // The groups' gradients are neither read nor changed.
+  void coast(const std::vector<std::string>& names);
   void zero_grad();
 
   // For a group whose gradient arrives in blocks of rows during the backward
@@ -90,6 +95,7 @@ class Adam {
 
 // The fused update on raw float32 arrays of length n, exposed for tests and
 // benchmarks. step is the 1-based step count after this update.
+// grad null: a zero gradient (Adam::coast).
 void fused_adam_update(float* param, const float* grad, float* exp_avg, float* exp_avg_sq,
                        int64_t n, double lr, int64_t step, const AdamOptions& options);
 

@@ -197,6 +197,7 @@ constexpr AddedKey kAddedKeys[] = {
     {"camera_refinement.rig_align_fraction", "0"},  // rig runs had no alignment phase
     {"camera_refinement.rig_pivot", "false"},       // turns about the camera centre
     {"camera_refinement.rig_start", "\"\""},        // the factory values
+    {"data.block_as_flight", "false"},              // blocks trained on their own schedule
 };
 
 // The one section added whole since format_version 2 began.

@@ -79,16 +79,6 @@ double field_radius(const io::Scene& scene, const std::vector<int>& views,
 
 }  // namespace
 
-double scene_extent(const io::Scene& scene, const std::vector<int>& views) {
-  core::require(!views.empty(), scene.root, "no training views");
-  core::Vec3 mean;
-  for (int v : views) mean = mean + scene.views[v].camera.center() * (1.0 / double(views.size()));
-  double radius = 0;
-  for (int v : views) radius = std::max(radius, (scene.views[v].camera.center() - mean).norm());
-  // A single camera (or coincident ones) has no spread; fall back to unit scale.
-  return radius > 0 ? 1.1 * radius : 1.0;
-}
-
 torch::Tensor sample_view_volume(const io::Scene& scene, const std::vector<int>& views,
                                  int64_t count, at::Generator& generator) {
   core::require(!views.empty(), scene.root, "no training views");

@@ -57,12 +57,8 @@ model::ColourModel initial_colour_model(const io::Scene& scene, int spectral_ran
 // of the checkpoint's shapes. Logs what it is and where it comes from.
 model::ColourModel resumed_colour_model(const io::Scene& scene, int64_t rank);
 
-// 3DGS's scene extent: 1.1 x the largest distance of a camera centre from
-// their mean (scene units). Scales position learning rates and densification.
-// (For a narrow field of view it is many times the object's size; it is kept
-// because in pixels at the object it is what 3DGS uses: scaling it down to
-// the object's size cost 2.9 dB on Basil, docs/benchmarks.md.)
-double scene_extent(const io::Scene& scene, const std::vector<int>& views);
+// 3DGS's scene extent (io/scene/scene.h).
+using io::scene_extent;
 
 // Uniform points along random pixel rays of the given views, at depths within
 // the camera's distance d to the point the cameras look at (least-squares

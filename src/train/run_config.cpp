@@ -33,6 +33,7 @@ DataConfig parse_data(const json& d, const std::string& source) {
   o.bin = read<int>(d, "data", "bin", source);
   o.band_step = read<int>(d, "data", "band_step", source);
   o.cache_mb = read<size_t>(d, "data", "cache_mb", source);
+  c.block_as_flight = read<bool>(d, "data", "block_as_flight", source);
   return c;  // ranges and the band range: validate_config (config_values.cpp)
 }
 

@@ -27,6 +27,13 @@ namespace ddhgs::train {
 struct DataConfig {
   std::filesystem::path path;  // the dataset; empty in presets
   io::LoadOptions load;        // downscale, rgb, band_min_nm, band_max_nm, bin, cache_mb
+  // A block of a flight (a scene with partition's block.json) trains as the
+  // flight's own model would have trained its ground: the flight's schedule
+  // of steps over all its training views (a step whose view lies elsewhere
+  // moves the Gaussians on their Adam momentum alone), the flight's extent,
+  // and a loss only where a pixel's ground lies in the block's cell and
+  // margin. False: the block trains as a scene of its own.
+  bool block_as_flight = true;
 };
 
 // Whether each training view learns a gain per band for its capture's light

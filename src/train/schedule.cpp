@@ -1,10 +1,13 @@
 #include "train/schedule.h"
 
+#include <ATen/CPUGeneratorImpl.h>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
 
 #include "train/run_config.h"
+#include "train/seed.h"
 
 namespace ddhgs::train {
 
@@ -46,6 +49,13 @@ Schedule schedule_of(const RunConfig& config) {
     s.rig_align_until = std::min(
         s.iterations, s.reference_views_until + interval(cameras.rig_align_fraction, s.iterations));
   return s;
+}
+
+int64_t epoch_slot(int64_t iteration, int64_t slots, uint64_t seed) {
+  const int64_t epoch = (iteration - 1) / slots, position = (iteration - 1) % slots;
+  auto generator =
+      at::make_generator<at::CPUGeneratorImpl>(mix_seed(seed, uint64_t(2 * epoch + 1)));
+  return torch::randperm(slots, generator, torch::kInt64)[position].item<int64_t>();
 }
 
 }  // namespace ddhgs::train

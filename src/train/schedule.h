@@ -57,4 +57,9 @@ int64_t run_iterations(const RunConfig& config, bool band_per_view, int64_t trai
 // least 1 for the intervals whose fraction is above zero.
 Schedule schedule_of(const RunConfig& config);
 
+// The slot (0 to slots - 1) step `iteration` (1-based) takes: a fresh
+// permutation of the slots every epoch of `slots` steps, drawn from `seed`
+// and the epoch (train/seed.h mix_seed), so each slot comes once an epoch.
+int64_t epoch_slot(int64_t iteration, int64_t slots, uint64_t seed);
+
 }  // namespace ddhgs::train

@@ -16,6 +16,7 @@
 #include "core/stage_timer.h"
 #include "core/threads.h"
 #include "eval/evaluate.h"
+#include "io/blocks/ground.h"
 #include "model/densify.h"
 #include "train/band_draw.h"
 #include "train/diffusion_stage.h"
@@ -123,16 +124,75 @@ torch::Tensor Trainer::render_camera(const core::Camera& camera) {
 }
 
 int Trainer::view_for(int64_t iteration) const {
-  // A fresh permutation of the training views every epoch, seeded by epoch;
-  // a rig run's warm-up draws from its reference camera's views alone.
   const bool warmup = !reference_train_.empty() && schedule_.reference_views_only(iteration);
   const std::vector<int>& views = warmup ? reference_train_ : scene_->train;
   const int64_t n = int64_t(views.size());
-  const int64_t epoch = (iteration - 1) / n, position = (iteration - 1) % n;
-  auto generator =
-      at::make_generator<at::CPUGeneratorImpl>(mix_seed(config_.seed, uint64_t(2 * epoch + 1)));
-  auto order = torch::randperm(n, generator, torch::kInt64);
-  return views[size_t(order[position].item<int64_t>())];
+  // The block's views take the first of the flight's slots (which views
+  // they are does not matter: every permutation is as likely).
+  const int64_t slots = !warmup && flight_views_ > n ? flight_views_ : n;
+  const int64_t slot = epoch_slot(iteration, slots, config_.seed);
+  return slot < n ? views[size_t(slot)] : kElsewhere;
+}
+
+json Trainer::coast(int64_t iteration) {
+  {
+    core::StageScope stage("adam");
+    state_.adam.coast(model::Gaussians::tensor_names());
+  }
+  measure_test_views(iteration);
+  densify_after(iteration);
+  json record = {{"iter", iteration},
+                 {"elsewhere", true},
+                 {"num_gaussians", state_.gaussians.size()},
+                 {"densify_added", state_.counters.densify_added},
+                 {"densify_removed", state_.counters.densify_removed}};
+  if (!step_test_.is_null()) record.update(step_test_);
+  return record;
+}
+
+void Trainer::measure_test_views(int64_t iteration) {
+  // A test record measures the Gaussians this step has optimised, before
+  // densification clones, splits, prunes and resets their opacity: measured
+  // after, the held-out views would see a model the next steps have not yet
+  // fitted again (1-6 dB low on a densifying iteration, 13-15 dB on an
+  // opacity reset; the iterations between agree, docs/benchmarks.md).
+  step_test_ = json();
+  if (!measures_test_views(iteration)) return;
+  const auto measure_start = std::chrono::steady_clock::now();
+  step_test_ = test_psnr();
+  test_seconds_ +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - measure_start).count();
+}
+
+void Trainer::densify_after(int64_t iteration) {
+  if (!schedule_.densifies(iteration)) return;
+  core::StageScope stage("densify");
+  auto& g = state_.gaussians;
+  const int64_t reset_every = schedule_.opacity_reset_every;
+  if (iteration > schedule_.densify_from && every(iteration, schedule_.densify_every)) {
+    auto generator =
+        at::make_generator<at::CPUGeneratorImpl>(mix_seed(config_.seed, uint64_t(2 * iteration)));
+    const int64_t before = g.size();
+    auto r =
+        model::densify_and_prune(g, state_.adam, state_.stats, config_.densify.thresholds, extent_,
+                                 reset_every > 0 && iteration > reset_every, generator);
+    state_.counters.densify_added += r.cloned + r.split;
+    state_.counters.densify_removed += r.pruned;
+    core::log_debug("densify at " + std::to_string(iteration) + ": " + std::to_string(before) +
+                    " -> " + std::to_string(g.size()) + " (" + std::to_string(r.cloned) +
+                    " cloned, " + std::to_string(r.split) + " split, " + std::to_string(r.pruned) +
+                    " pruned: " + std::to_string(r.pruned_transparent) + " transparent, " +
+                    std::to_string(r.pruned_screen) + " large on screen, " +
+                    std::to_string(r.pruned_world) + " large in the world)");
+  }
+  if (every(iteration, reset_every)) model::reset_opacity(g, state_.adam);
+}
+
+torch::Tensor Trainer::block_loss_mask(const core::Camera& camera, const ViewCrop* crop,
+                                       int64_t height, int64_t width) const {
+  return io::ground_box_mask(block_->frame, block_->margined, camera, crop ? crop->x0 : 0,
+                             crop ? crop->y0 : 0, int(width), int(height))
+      .unsqueeze(-1);
 }
 
 torch::Tensor Trainer::band_map(const torch::Tensor& bands) const {
@@ -181,6 +241,7 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     ++g.active_sh_degree;
 
   const int view = pseudo ? -1 : view_for(iteration);
+  if (view == kElsewhere && !pseudo) return coast(iteration);
   const core::Camera& camera = pseudo ? pseudo->camera : scene_->views[view].camera;
   const torch::Tensor bands = pseudo ? torch::Tensor() : step_bands(iteration, view);
   const std::optional<ViewCrop> crop =
@@ -222,6 +283,14 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   torch::Tensor rendered = pseudo ? out.image : scene_->view_slice(view, out.image);
   if (exposure_ && !pseudo)
     rendered = exposure_->apply(view, rendered, bands.defined() ? bands : scene_->view_bands(view));
+  // A block learns the ground of its cell and margin: elsewhere the target
+  // is the render itself, which no loss term pulls on.
+  if (block_ && !pseudo) {
+    core::StageScope stage("block mask");
+    target = torch::where(
+        block_loss_mask(camera, crop ? &*crop : nullptr, rendered.size(0), rendered.size(1)),
+        target, rendered.detach());
+  }
   LossValues loss;
   {
     core::StageScope stage("losses (other)");
@@ -265,41 +334,11 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     if (exposure_) exposure_->recentre();
   }
 
-  // A test record measures the Gaussians this step has optimised, before
-  // densification clones, splits, prunes and resets their opacity: measured
-  // after, the held-out views would see a model the next steps have not yet
-  // fitted again (1-6 dB low on a densifying iteration, 13-15 dB on an
-  // opacity reset; the iterations between agree, docs/benchmarks.md).
-  step_test_ = json();
-  if (!pseudo && measures_test_views(iteration)) {
-    const auto measure_start = std::chrono::steady_clock::now();
-    step_test_ = test_psnr();
-    test_seconds_ +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - measure_start).count();
-  }
-
-  if (schedule_.densifies(iteration)) {
-    core::StageScope stage("densify");
-    const int64_t reset_every = schedule_.opacity_reset_every;
-    if (iteration > schedule_.densify_from && every(iteration, schedule_.densify_every)) {
-      auto generator =
-          at::make_generator<at::CPUGeneratorImpl>(mix_seed(config_.seed, uint64_t(2 * iteration)));
-      const int64_t before = g.size();
-      auto r =
-          model::densify_and_prune(g, state_.adam, state_.stats, config_.densify.thresholds,
-                                   extent_, reset_every > 0 && iteration > reset_every, generator);
-      state_.counters.densify_added += r.cloned + r.split;
-      state_.counters.densify_removed += r.pruned;
-      core::log_debug("densify at " + std::to_string(iteration) + ": " + std::to_string(before) +
-                      " -> " + std::to_string(g.size()) + " (" + std::to_string(r.cloned) +
-                      " cloned, " + std::to_string(r.split) + " split, " +
-                      std::to_string(r.pruned) +
-                      " pruned: " + std::to_string(r.pruned_transparent) + " transparent, " +
-                      std::to_string(r.pruned_screen) + " large on screen, " +
-                      std::to_string(r.pruned_world) + " large in the world)");
-    }
-    if (every(iteration, reset_every)) model::reset_opacity(g, state_.adam);
-  }
+  if (pseudo)
+    step_test_ = json();
+  else
+    measure_test_views(iteration);
+  densify_after(iteration);
 
   core::StageScope stage("metrics");
   json record = {{"iter", iteration}, {"loss", loss.total.item<double>()}};
@@ -430,15 +469,18 @@ TrainStatus Trainer::run_steps() {
     }
     return true;
   };
-  // The training-view PSNR of the last record that measured it (keeps_record).
-  double shown_psnr = std::nan("");
-  auto gaussian_status = [&shown_psnr](const json& record) {
+  // The training-view PSNR of the last record that measured it (keeps_record),
+  // and the loss of the last step that rendered a view (a block's steps
+  // elsewhere in its flight have none).
+  double shown_psnr = std::nan(""), shown_loss = std::nan("");
+  auto gaussian_status = [&shown_psnr, &shown_loss](const json& record) {
     if (record.contains("train_psnr")) shown_psnr = record["train_psnr"].get<double>();
+    if (record.contains("loss")) shown_loss = record["loss"].get<double>();
     char psnr_text[40] = "";
     if (!std::isnan(shown_psnr))
       std::snprintf(psnr_text, sizeof psnr_text, "  psnr %.2f dB", shown_psnr);
     char text[160];
-    std::snprintf(text, sizeof text, "loss %.4f%s  G %lld", record["loss"].get<double>(), psnr_text,
+    std::snprintf(text, sizeof text, "loss %.4f%s  G %lld", shown_loss, psnr_text,
                   (long long)record["num_gaussians"].get<int64_t>());
     return std::string(text);
   };

@@ -14,6 +14,7 @@
 #include <optional>
 #include <vector>
 
+#include "io/blocks/block_grid.h"
 #include "io/scene/scene.h"
 #include "model/gaussians.h"
 #include "model/wavelength_encoder.h"
@@ -92,7 +93,27 @@ class Trainer : private StageHost {
   // auxiliary model's (train/denoiser_pairs.h).
   void initialise();
   void set_learning_rates(int64_t iteration);
+  // The training view step `iteration` renders: a fresh permutation of the
+  // training views every epoch, seeded by epoch; a rig run's warm-up draws
+  // from its reference camera's views alone. A block trained as part of its
+  // flight draws from the flight's training views: kElsewhere when the
+  // step's view is not one of the block's.
+  static constexpr int kElsewhere = -1;
   int view_for(int64_t iteration) const;
+  // A step whose view lies elsewhere in the flight: the Gaussians move on
+  // their Adam momentum (model::Adam::coast), densification and the test
+  // record go on as scheduled; the record has no loss.
+  nlohmann::json coast(int64_t iteration);
+  // The held-out views' PSNR into step_test_ when the step takes a test record.
+  void measure_test_views(int64_t iteration);
+  // Densification and opacity resets as scheduled after step `iteration`.
+  void densify_after(int64_t iteration);
+  // The block's cell and margin on the step's view (crop: its part of the
+  // view; null: the whole view): [H, W, 1] bool, where the loss applies.
+  torch::Tensor block_loss_mask(const core::Camera& camera, const ViewCrop* crop, int64_t height,
+                                int64_t width) const;
+  // One info line on how a block trains as part of its flight.
+  void log_block() const;
   // A training view rendered with its camera correction, if any; sink as in
   // render::rasterize; rest_step receives the SH rest gradient in blocks;
   // band_map ([M, N], may be undefined) picks the bands rendered; crop (may
@@ -160,6 +181,11 @@ class Trainer : private StageHost {
   std::vector<LossTerm> losses_;
   torch::Tensor background_;  // [N]
   double extent_ = 1;
+  // A block of a flight (io::read_block_context) trained as part of it
+  // (data.block_as_flight): its context, and the flight's training views
+  // the steps draw from (0: the scene's own).
+  std::optional<io::BlockContext> block_;
+  int64_t flight_views_ = 0;
   model::WavelengthEncoder encoder_{nullptr};
   CameraRefinement camera_refinement_{nullptr};  // camera_refinement.enabled
   ExposureCorrection exposure_{nullptr};         // model.exposure_correction

@@ -61,6 +61,11 @@ void Trainer::write_outputs(double seconds, const json& test_at_end) {
   core::log_info("peak memory " +
                  std::to_string(std::llround(summary["peak_rss_mib"].get<double>())) +
                  " MiB resident (train_summary.json: peak_rss_mib)");
+  if (block_)
+    summary["block"] = {{"name", block_->name},
+                        {"flight_train_views", flight_views_},
+                        {"own_train_views", int64_t(scene_->train.size())},
+                        {"flight_extent", extent_}};
   if (offsets.defined()) {
     // How far the encoder moved the SH coefficients, to judge its effect.
     summary["wavelength_offsets_abs_max"] = offsets.abs().max().item<double>();

@@ -8,6 +8,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/text.h"
+#include "io/blocks/block_grid.h"
 #include "io/files/atomic_file.h"
 #include "io/scene/backdrop.h"
 #include "train/config.h"
@@ -48,12 +49,15 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   std::unique_ptr<Trainer> t(new Trainer(std::move(parsed), run));
   t->load_scene();  // before touching the output, so bad input leaves it intact
   json written = config;
-  const int64_t length =
-      run_iterations(t->config_, t->scene_->band_per_view(), int64_t(t->scene_->train.size()));
+  // A block of a flight runs the flight's schedule, so its length follows the
+  // flight's training views.
+  const int64_t schedule_views =
+      t->flight_views_ > 0 ? t->flight_views_ : int64_t(t->scene_->train.size());
+  const int64_t length = run_iterations(t->config_, t->scene_->band_per_view(), schedule_views);
   if (length != t->config_.iterations) {
     core::log_info("training for " + std::to_string(length) + " iterations (" +
                    std::to_string(t->config_.optim.iterations_per_band_view) + " per view of " +
-                   std::to_string(t->scene_->train.size()) +
+                   std::to_string(schedule_views) +
                    " training band images: optim.iterations_per_band_view on a band-per-view "
                    "scene; --iterations N sets the length)");
     t->config_.iterations = length;
@@ -76,7 +80,22 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
                  std::to_string(t->scene_->train.size()) + " views (" +
                  std::to_string(t->scene_->test.size()) + " held out)");
   t->log_crops();
+  t->log_block();
   return t;
+}
+
+void Trainer::log_block() const {
+  if (!block_) return;
+  const int64_t own = int64_t(scene_->train.size());
+  core::log_info(block_->name + " of a flight of " + std::to_string(flight_views_) +
+                 " training views, trained as the flight's model would have trained its ground "
+                 "(data.block_as_flight): " +
+                 std::to_string(own) + " of every " + std::to_string(flight_views_) +
+                 " steps render one of its views, the others move its Gaussians on momentum "
+                 "alone; the flight's extent " +
+                 core::fixed(extent_, 3) +
+                 "; the loss only where the ground lies in its cell and margin. Give it the "
+                 "iterations you would give the whole flight.");
 }
 
 void Trainer::log_crops() const {
@@ -213,6 +232,22 @@ void Trainer::load_scene() {
     }
   }
   extent_ = scene_extent(*scene_, scene_->train);
+  // A block of a flight trains as the flight's model would have trained its
+  // ground (data.block_as_flight); an auxiliary model of the denoiser's pairs
+  // trains on the scene alone.
+  if (config_.data.block_as_flight && !auxiliary_) {
+    block_ = io::read_block_context(data);
+    if (block_) {
+      const int64_t own = int64_t(scene_->train.size());
+      if (block_->flight_train_views < own)
+        throw core::Error(data / io::kBlockContextFile,
+                          "flight_train_views: " + std::to_string(block_->flight_train_views) +
+                              " is fewer than the block's own " + std::to_string(own) +
+                              " training views (was the block's transforms.json edited?)");
+      flight_views_ = block_->flight_train_views;
+      extent_ = block_->flight_extent;
+    }
+  }
   const LossConfig& loss = config_.loss;
   losses_ = baseline_losses(loss.l1, loss.dssim);
   losses_.push_back(spectral_term(loss.spectral, loss.spectral_options));

@@ -208,6 +208,80 @@ TEST(BlocksCli, LatentBlocksKeepTheirSpectraInTheMergedModel) {
 
 // The workstation flow (scripts/slurm/local.sh): every block trained by
 // xargs -P, then merged; a second call trains nothing again.
+// Each block carries its place in the flight (block.json) and trains as the
+// flight's own model would have trained its ground: over the flight's
+// training views (a step whose view is elsewhere moves its Gaussians on
+// momentum alone), with the flight's extent, the loss only in its cell and
+// margin. A block that is the whole flight trains bit for bit as the scene
+// does on its own.
+TEST(BlocksCli, ABlockTrainsOnItsFlightsScheduleAndExtent) {
+  const fs::path root = test::temp_dir("blocks_cli_flight");
+  const fs::path blocks = root / "blocks";
+  std::string out;
+  ASSERT_EQ(
+      ddhgs("-q partition " + survey().string() + " --blocks 2 --out " + blocks.string(), &out), 0)
+      << out;
+  const io::BlocksFile file = io::read_blocks_file(blocks / "blocks.json");
+  const auto scene = io::load_scene(survey());
+  const double flight_extent = io::scene_extent(*scene, scene->train);
+  for (size_t b = 0; b < file.blocks.size(); ++b) {
+    const auto context = io::read_block_context(blocks / file.blocks[b].name);
+    ASSERT_TRUE(context.has_value()) << file.blocks[b].name;
+    EXPECT_EQ(context->name, file.blocks[b].name);
+    EXPECT_EQ(context->flight_train_views, int64_t(scene->train.size()));
+    EXPECT_DOUBLE_EQ(context->flight_extent, flight_extent);
+    EXPECT_DOUBLE_EQ(context->cell.u0, file.grid.cell(int(b)).u0);
+    EXPECT_DOUBLE_EQ(context->margined.v1, file.grid.margined(int(b)).v1);
+    EXPECT_DOUBLE_EQ(context->frame.n.dot(file.grid.frame.n), 1);
+  }
+
+  const fs::path block = blocks / "block_00", run = block / "run";
+  ASSERT_EQ(ddhgs("train " + block.string() + " --out " + run.string() + test::kQuickTrain +
+                      " --set output.log_every=1",
+                  &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("data.block_as_flight"), std::string::npos) << out;
+  const json summary = json::parse(io::read_file(run / "train_summary.json"));
+  const size_t own = file.blocks[0].train_views.size();
+  EXPECT_EQ(summary["block"]["flight_train_views"].get<size_t>(), scene->train.size());
+  EXPECT_EQ(summary["block"]["own_train_views"].get<size_t>(), own);
+  EXPECT_DOUBLE_EQ(summary["block"]["flight_extent"].get<double>(), flight_extent);
+  // Every step has a record: those that rendered a view have a loss, the
+  // others lie elsewhere in the flight; both kinds happen.
+  int rendered = 0, elsewhere = 0;
+  const std::string log = io::read_file(run / "metrics.jsonl");
+  for (size_t at = 0, end; (end = log.find('\n', at)) != std::string::npos; at = end + 1) {
+    const json record = json::parse(log.substr(at, end - at));
+    if (record.contains("loss")) ++rendered;
+    if (record.value("elsewhere", false)) ++elsewhere;
+  }
+  EXPECT_EQ(rendered + elsewhere, 20);
+  EXPECT_GT(rendered, 0);
+  EXPECT_GT(elsewhere, 0);
+  ASSERT_LT(own, scene->train.size());
+
+  // The block as its own flight: its own views, its own extent, a box round
+  // everything. Then the flight's schedule is the scene's own.
+  const fs::path whole = root / "whole";
+  fs::copy(block, whole, fs::copy_options::recursive);
+  fs::remove_all(whole / "run");
+  const auto alone = io::load_scene(whole);
+  io::BlockContext context = *io::read_block_context(whole);
+  context.flight_train_views = int64_t(alone->train.size());
+  context.flight_extent = io::scene_extent(*alone, alone->train);
+  context.margined = {-1e9, 1e9, -1e9, 1e9};
+  io::write_block_context(whole / io::kBlockContextFile, context);
+  for (const char* as_flight : {"true", "false"})
+    ASSERT_EQ(ddhgs("-q train " + whole.string() + " --out " + (root / as_flight).string() +
+                        test::kQuickTrain + " --set data.block_as_flight=" + as_flight,
+                    &out),
+              0)
+        << out;
+  EXPECT_EQ(io::read_file(root / "true" / "gaussians.ply"),
+            io::read_file(root / "false" / "gaussians.ply"));
+}
+
 TEST(BlocksCli, LocalScriptTrainsEveryBlockThenMerges) {
   const fs::path root = test::temp_dir("blocks_cli_local");
   const fs::path blocks = root / "blocks", merged = root / "merged";

@@ -184,5 +184,70 @@ TEST(BlocksFile, RoundTripsAndRefusesMalformedFiles) {
   refused("\"points\": 4", "\"points\": -4", "points");
 }
 
+TEST(BlockContext, RoundTripsAndRefusesMalformedFiles) {
+  const fs::path dir = test::temp_dir("block_context");
+  EXPECT_FALSE(read_block_context(dir).has_value());  // an ordinary scene
+  BlockContext c;
+  c.name = "block_01";
+  c.frame.origin = {1, 2, 3};
+  c.cell = {0, 2, 0, 1};
+  c.margined = {-0.4, 2.4, -0.2, 1.2};
+  c.flight_train_views = 44;
+  c.flight_extent = 6.487953521;
+  write_block_context(dir / kBlockContextFile, c);
+  const std::optional<BlockContext> back = read_block_context(dir);
+  ASSERT_TRUE(back.has_value());
+  EXPECT_EQ(back->name, "block_01");
+  EXPECT_DOUBLE_EQ(back->frame.origin.y, 2);
+  EXPECT_DOUBLE_EQ(back->cell.u1, 2);
+  EXPECT_DOUBLE_EQ(back->margined.v0, -0.2);
+  EXPECT_EQ(back->flight_train_views, 44);
+  EXPECT_EQ(back->flight_extent, c.flight_extent);  // every digit
+
+  const std::string text = read_file(dir / kBlockContextFile);
+  const fs::path bad_dir = dir / "bad";
+  fs::create_directories(bad_dir);
+  auto refused = [&](const std::string& from, const std::string& to, const std::string& says) {
+    std::string bad = text;
+    const size_t at = bad.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    bad.replace(at, from.size(), to);
+    write_file_atomically(bad_dir / kBlockContextFile, bad);
+    try {
+      read_block_context(bad_dir);
+      ADD_FAILURE() << "accepted " << to;
+    } catch (const core::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(kBlockContextFile), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  refused("\"flight_train_views\": 44", "\"flight_train_views\": 0", "flight_train_views");
+  refused("\"flight_extent\": 6.487953521", "\"flight_extent\": -1", "flight_extent");
+  refused("\"ddhgs block\"", "\"ddhgs blocks\"", "format");
+}
+
+TEST(GroundBoxMask, APixelCountsWhereItsRayMeetsTheGroundInsideTheBox) {
+  // 10 units above the ground, 100 x 80 pixels, focal length 100: a pixel
+  // column x sees the ground at u = (x + 0.5 - 50) / 10 (image x along +u).
+  const core::Camera camera = nadir_camera(0, 0, 10);
+  GroundFrame frame;  // the plane z = 0, u along x, v along y
+  const GroundBox box{1, 2, -100, 100};
+  const torch::Tensor whole = ground_box_mask(frame, box, camera, 0, 0, 100, 80);
+  ASSERT_EQ(whole.sizes(), (std::vector<int64_t>{80, 100}));
+  // Columns 60 to 69 (u 1.05 to 1.95), every row.
+  const torch::Tensor columns = whole.any(0);
+  for (int x = 0; x < 100; ++x) EXPECT_EQ(columns[x].item<bool>(), x >= 60 && x < 70) << x;
+  EXPECT_EQ(whole.sum().item<int64_t>(), 10 * 80);
+  // A window of the image: its own pixels, at their place in the view.
+  const torch::Tensor window = ground_box_mask(frame, box, camera, 55, 30, 20, 10);
+  EXPECT_TRUE(torch::equal(window, whole.slice(0, 30, 40).slice(1, 55, 75)));
+  // Rows follow v: a box across v takes the rows whose ground is in it.
+  const GroundBox across{-100, 100, 0, 100};
+  EXPECT_EQ(ground_box_mask(frame, across, camera, 0, 0, 100, 80).sum().item<int64_t>(), 40 * 100);
+  // A camera under the ground sees none of it.
+  EXPECT_EQ(
+      ground_box_mask(frame, box, nadir_camera(0, 0, -10), 0, 0, 100, 80).sum().item<int64_t>(), 0);
+}
+
 }  // namespace
 }  // namespace ddhgs::io

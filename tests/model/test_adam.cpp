@@ -191,6 +191,41 @@ TEST(Adam, SaveAndLoadRestoreTheState) {
   EXPECT_THROW(other.load(in2, "ckpt.pt"), std::exception);
 }
 
+TEST(Adam, CoastingIsAStepWithZeroGradientsOnTheGroupsNamed) {
+  torch::manual_seed(11);
+  auto start = torch::randn({40, 3});
+  auto other_start = torch::randn({5});
+  auto coasting = start.clone().requires_grad_(true),
+       reference = start.clone().requires_grad_(true);
+  auto other = other_start.clone().requires_grad_(true);
+  model::Adam a, b;
+  a.add("means", coasting, 1e-2);
+  a.add("other", other, 1e-2);
+  b.add("means", reference, 1e-2);
+  for (int step = 0; step < 3; ++step) {  // moments to move on
+    const auto grad = torch::randn({40, 3});
+    coasting.mutable_grad() = grad.clone();
+    reference.mutable_grad() = grad.clone();
+    a.step();
+    b.step();
+    a.zero_grad();
+  }
+  for (int step = 0; step < 4; ++step) {
+    a.coast({"means"});
+    reference.mutable_grad() = torch::zeros({40, 3});
+    b.step();
+  }
+  EXPECT_TRUE(torch::equal(coasting, reference));
+  EXPECT_TRUE(torch::equal(a.group("means").exp_avg, b.group("means").exp_avg));
+  EXPECT_TRUE(torch::equal(a.group("means").exp_avg_sq, b.group("means").exp_avg_sq));
+  EXPECT_EQ(a.group("means").step, 7);
+  // It moved on its momentum, and the group not named did not move at all.
+  EXPECT_GT((coasting - start).abs().max().item<double>(), 0);
+  EXPECT_TRUE(torch::equal(other, other_start));
+  EXPECT_EQ(a.group("other").step, 0);
+  EXPECT_FALSE(coasting.grad().defined());
+}
+
 TEST(Adam, ExponentialScheduleIsLogLinear) {
   EXPECT_NEAR(model::exponential_lr(0, 1.6e-4, 1.6e-6, 30000), 1.6e-4, 1e-12);
   EXPECT_NEAR(model::exponential_lr(15000, 1.6e-4, 1.6e-6, 30000), 1.6e-5, 1e-12);

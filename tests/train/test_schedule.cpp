@@ -2,6 +2,7 @@
 // give; configs of format_version 1 (iteration numbers) are refused.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include "support/error_text.h"
@@ -106,4 +107,26 @@ TEST(Schedule, PresetsInIterationNumbersOfFormatVersion1AreRefused) {
   EXPECT_NE(error.find("old.json"), std::string::npos) << error;
   EXPECT_NE(error.find("format_version 1; this ddhgs reads format_version 2"), std::string::npos)
       << error;
+}
+
+TEST(Schedule, EachSlotComesOnceAnEpochInAnOrderOfItsOwn) {
+  const int64_t slots = 11;
+  std::vector<int64_t> first, second;
+  for (int64_t i = 1; i <= 2 * slots; ++i)
+    (i <= slots ? first : second).push_back(train::epoch_slot(i, slots, 5));
+  for (const auto* epoch : {&first, &second}) {
+    std::vector<int64_t> sorted = *epoch;
+    std::sort(sorted.begin(), sorted.end());
+    for (int64_t s = 0; s < slots; ++s) EXPECT_EQ(sorted[size_t(s)], s);
+  }
+  EXPECT_NE(first, second);  // a fresh permutation each epoch
+  EXPECT_NE(first, [&] {     // and another for another seed
+    std::vector<int64_t> other;
+    for (int64_t i = 1; i <= slots; ++i) other.push_back(train::epoch_slot(i, slots, 6));
+    return other;
+  }());
+  // A block of 4 views in a flight of 11 renders on 4 steps of each epoch of 11.
+  int rendered = 0;
+  for (int64_t i = 1; i <= 3 * slots; ++i) rendered += train::epoch_slot(i, slots, 5) < 4;
+  EXPECT_EQ(rendered, 3 * 4);
 }

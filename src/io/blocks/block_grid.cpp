@@ -116,6 +116,22 @@ struct BlocksReader {
       fail(key, "expected [low, high], low < high");
     return {v[0].get<double>(), v[1].get<double>()};
   }
+  GroundFrame frame(const json& ground) const {
+    GroundFrame f{vector(ground, "origin"), vector(ground, "u"), vector(ground, "v"),
+                  vector(ground, "normal")};
+    const core::Vec3 axes[3] = {f.u, f.v, f.n};
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        if (std::abs(axes[a].dot(axes[b]) - (a == b ? 1 : 0)) > 1e-6)
+          fail("ground", "u, v and normal must be orthonormal");
+    return f;
+  }
+  GroundBox box(const json& b) const {
+    GroundBox out;
+    std::tie(out.u0, out.u1) = range(b, "u");
+    std::tie(out.v0, out.v1) = range(b, "v");
+    return out;
+  }
   std::vector<std::string> strings(const json& parent, const std::string& key) const {
     const json& v = at(parent, key);
     if (!v.is_array()) fail(key, "expected a list of file paths");
@@ -173,17 +189,8 @@ BlocksFile read_blocks_file(const fs::path& path) {
   if (!scene.is_string() || scene.get<std::string>().empty()) r.fail("scene", "expected a path");
   file.scene = scene.get<std::string>();
   BlockGrid& g = file.grid;
-  const json& ground = r.at(j, "ground");
-  g.frame = {r.vector(ground, "origin"), r.vector(ground, "u"), r.vector(ground, "v"),
-             r.vector(ground, "normal")};
-  const core::Vec3 axes[3] = {g.frame.u, g.frame.v, g.frame.n};
-  for (int a = 0; a < 3; ++a)
-    for (int b = 0; b < 3; ++b)
-      if (std::abs(axes[a].dot(axes[b]) - (a == b ? 1 : 0)) > 1e-6)
-        r.fail("ground", "u, v and normal must be orthonormal");
-  const json& footprint = r.at(j, "footprint");
-  std::tie(g.footprint.u0, g.footprint.u1) = r.range(footprint, "u");
-  std::tie(g.footprint.v0, g.footprint.v1) = r.range(footprint, "v");
+  g.frame = r.frame(r.at(j, "ground"));
+  g.footprint = r.box(r.at(j, "footprint"));
   g.rows = r.integer(j, "rows", 1, 1000);
   g.cols = r.integer(j, "cols", 1, 1000);
   g.overlap = r.number(j, "overlap");
@@ -213,6 +220,45 @@ BlocksFile read_blocks_file(const fs::path& path) {
     file.blocks.push_back(std::move(record));
   }
   return file;
+}
+
+void write_block_context(const fs::path& path, const BlockContext& c) {
+  const json j = {{"format", "ddhgs block"},
+                  {"version", 1},
+                  {"name", c.name},
+                  {"ground",
+                   {{"origin", vec(c.frame.origin)},
+                    {"u", vec(c.frame.u)},
+                    {"v", vec(c.frame.v)},
+                    {"normal", vec(c.frame.n)}}},
+                  {"cell", box(c.cell)},
+                  {"margined", box(c.margined)},
+                  {"flight_train_views", c.flight_train_views},
+                  {"flight_extent", c.flight_extent}};
+  write_file_atomically(path, j.dump(2) + "\n");
+}
+
+std::optional<BlockContext> read_block_context(const fs::path& scene_root) {
+  const fs::path path = scene_root / kBlockContextFile;
+  if (!fs::exists(path)) return std::nullopt;
+  require_regular_file(path);
+  const json j = json::parse(read_file(path), nullptr, false);
+  const BlocksReader r{path};
+  if (j.is_discarded() || !j.is_object()) r.fail("block.json", "not a JSON object");
+  if (!j.contains("format") || j["format"] != "ddhgs block")
+    r.fail("format", "expected \"ddhgs block\" (a file written by ddhgs partition)");
+  r.integer(j, "version", 1, 1);
+  BlockContext c;
+  const json& name = r.at(j, "name");
+  if (!name.is_string()) r.fail("name", "expected the block's folder name");
+  c.name = name.get<std::string>();
+  c.frame = r.frame(r.at(j, "ground"));
+  c.cell = r.box(r.at(j, "cell"));
+  c.margined = r.box(r.at(j, "margined"));
+  c.flight_train_views = r.integer(j, "flight_train_views", 1, 1 << 30);
+  c.flight_extent = r.number(j, "flight_extent");
+  if (!(c.flight_extent > 0)) r.fail("flight_extent", "expected a positive number");
+  return c;
 }
 
 }  // namespace ddhgs::io

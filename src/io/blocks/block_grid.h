@@ -4,6 +4,7 @@
 // (docs/data-formats.md).
 #pragma once
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -74,5 +75,22 @@ struct BlocksFile {
 void write_blocks_file(const std::filesystem::path& path, const BlocksFile& file);
 // core::Error naming the file and the key when it is malformed.
 BlocksFile read_blocks_file(const std::filesystem::path& path);
+
+// BLOCK/block.json, which partition writes into each block's scene folder:
+// where the block lies in its flight, so that `ddhgs train` can train it as
+// the flight's own model would have trained that ground (train/trainer.h:
+// data.block_as_flight).
+struct BlockContext {
+  std::string name;  // the block's folder name
+  GroundFrame frame;
+  GroundBox cell, margined;
+  int64_t flight_train_views = 0;  // the whole flight's training views
+  double flight_extent = 0;        // io::scene_extent of those views
+};
+constexpr const char* kBlockContextFile = "block.json";
+void write_block_context(const std::filesystem::path& path, const BlockContext& context);
+// The context of the scene folder `scene_root`, if it has a block.json;
+// core::Error naming the file and the key when it is malformed.
+std::optional<BlockContext> read_block_context(const std::filesystem::path& scene_root);
 
 }  // namespace ddhgs::io

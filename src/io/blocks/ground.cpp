@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/distortion.h"
+#include "core/error.h"
+#include "core/parallel.h"
+
 namespace ddhgs::io {
 using core::Vec3;
 
@@ -135,6 +139,36 @@ GroundBox view_footprint(const GroundFrame& frame, const core::Camera& camera, b
       any = true;
     }
   return box;
+}
+
+torch::Tensor ground_box_mask(const GroundFrame& frame, const GroundBox& box,
+                              const core::Camera& camera, int x0, int y0, int width, int height) {
+  torch::Tensor mask = torch::zeros({std::max(0, height), std::max(0, width)}, torch::kBool);
+  const Vec3 c = camera.center();
+  const double above = (c - frame.origin).dot(frame.n);
+  if (!(above > 0) || width <= 0 || height <= 0) return mask;
+  const core::Intrinsics& k = camera.intrinsics;
+  const core::Mat3 to_world = camera.camera_to_world().rotation();
+  bool* out = mask.data_ptr<bool>();
+  core::parallel_for(0, height, 16, [&](int64_t begin, int64_t end) {
+    for (int64_t y = begin; y < end; ++y)
+      for (int x = 0; x < width; ++x) {
+        core::Point2 p{(x0 + x + 0.5 - k.cx) / k.fx, (y0 + y + 0.5 - k.cy) / k.fy};
+        if (k.has_distortion()) {
+          try {
+            p = core::undistort(k, p);
+          } catch (const core::Error&) {
+            continue;  // beyond the lens model's fold: no ray
+          }
+        }
+        const Vec3 d = to_world * Vec3{p.x, p.y, 1.0};
+        const double down = -d.dot(frame.n);
+        if (!(down > 1e-9 * d.norm())) continue;  // at or above the horizon
+        const Vec3 hit = c + d * (above / down);
+        out[y * width + x] = box.contains(frame.along(hit), frame.across(hit));
+      }
+  });
+  return mask;
 }
 
 }  // namespace ddhgs::io

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/tensor.h"
 #include "io/blocks/block_grid.h"
 
 namespace ddhgs::io {
@@ -35,5 +36,13 @@ GroundFrame ground_frame(const std::vector<core::Vec3>& points,
 // the camera; with none, the camera centre's foot). with_ground false (a
 // scene without points, whose ground height is unknown): the centre's foot.
 GroundBox view_footprint(const GroundFrame& frame, const core::Camera& camera, bool with_ground);
+
+// Which pixels of a window of a camera's image see the ground plane inside
+// box: [height, width] bool, the window's top-left pixel at (x0, y0) of the
+// image. A pixel's ray leaves through its centre (the lens's distortion
+// undone) and must meet the plane in front of the camera; a camera at or
+// below the plane sees none of it.
+torch::Tensor ground_box_mask(const GroundFrame& frame, const GroundBox& box,
+                              const core::Camera& camera, int x0, int y0, int width, int height);
 
 }  // namespace ddhgs::io

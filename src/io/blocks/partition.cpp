@@ -121,7 +121,7 @@ PointCloud subset(const PointCloud& cloud, const std::vector<int64_t>& keep) {
 
 // One block's scene folder in `folder`: its frames, files and points.
 void write_block(const Source& s, const std::vector<int>& views, const std::vector<int64_t>& points,
-                 const fs::path& folder, BlockRecord* record) {
+                 const BlockContext& context, const fs::path& folder, BlockRecord* record) {
   fs::create_directories(folder);
   TransformsFile tf = s.transforms;
   tf.frames.clear();
@@ -152,14 +152,18 @@ void write_block(const Source& s, const std::vector<int>& views, const std::vect
   }
   record->points = int64_t(points.size());
   write_transforms(folder / "transforms.json", tf);
+  write_block_context(folder / kBlockContextFile, context);
   // The scene's other top-level files: wavelengths, georeferencing, notes.
   const fs::path ply = s.transforms.ply_file_path.empty()
                            ? fs::path()
                            : (s.root / s.transforms.ply_file_path).lexically_normal();
   for (const auto& entry : fs::directory_iterator(s.root)) {
     const std::string name = entry.path().filename().string();
+    // A block's own block.json is this cut's, never its source's (a block
+    // cut again is a flight of its own).
     if (!entry.is_regular_file() || name.empty() || name[0] == '.' || name == "transforms.json" ||
-        entry.path().lexically_normal() == ply || fs::exists(folder / name))
+        name == kBlockContextFile || entry.path().lexically_normal() == ply ||
+        fs::exists(folder / name))
       continue;
     place(entry.path(), folder / name);
   }
@@ -232,13 +236,22 @@ BlocksFile partition_scene(const PartitionOptions& options) {
                       ") has no training view: use fewer blocks or more --overlap");
   }
 
+  // What a block needs to train as the flight's model would have trained
+  // its ground: the flight's training views and extent.
+  BlockContext context;
+  context.frame = grid.frame;
+  context.flight_train_views = int64_t(s.scene->train.size());
+  context.flight_extent = scene_extent(*s.scene, s.scene->train);
   write_folder_atomically(request, [&](const fs::path& tmp) {
     for (int b = 0; b < grid.blocks(); ++b) {
       BlockRecord record;
       record.name = block_name(b, grid.blocks());
       record.row = b / grid.cols;
       record.col = b % grid.cols;
-      write_block(s, views[size_t(b)], members[size_t(b)], tmp / record.name, &record);
+      context.name = record.name;
+      context.cell = grid.cell(b);
+      context.margined = grid.margined(b);
+      write_block(s, views[size_t(b)], members[size_t(b)], context, tmp / record.name, &record);
       core::log_info("partition: " + record.name + ": " +
                      std::to_string(record.train_views.size()) + " training and " +
                      std::to_string(record.test_views.size()) + " held-out views, " +

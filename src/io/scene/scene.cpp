@@ -318,4 +318,14 @@ torch::Tensor Scene::clean_image(int view) const {
   return cube_to_float(cube, cube.type == stored_type ? scale : 0);
 }
 
+double scene_extent(const Scene& scene, const std::vector<int>& views) {
+  core::require(!views.empty(), scene.root, "no training views");
+  core::Vec3 mean;
+  for (int v : views) mean = mean + scene.views[v].camera.center() * (1.0 / double(views.size()));
+  double radius = 0;
+  for (int v : views) radius = std::max(radius, (scene.views[v].camera.center() - mean).norm());
+  // A single camera (or coincident ones) has no spread; fall back to unit scale.
+  return radius > 0 ? 1.1 * radius : 1.0;
+}
+
 }  // namespace ddhgs::io

@@ -162,4 +162,12 @@ void require_named_bands(const std::filesystem::path& path, int64_t bands, int64
 // Wavelengths (nm) given to the three bands of an RGB scene.
 std::vector<double> rgb_wavelengths_nm();
 
+// 3DGS's scene extent: 1.1 x the largest distance of a camera centre from
+// their mean (scene units). Scales position learning rates and densification.
+// (For a narrow field of view it is many times the object's size; it is kept
+// because in pixels at the object it is what 3DGS uses: scaling it down to
+// the object's size cost 2.9 dB on Basil, docs/benchmarks.md.) A block of a
+// flight trains with its flight's (io/blocks/block_grid.h: BlockContext).
+double scene_extent(const Scene& scene, const std::vector<int>& views);
+
 }  // namespace ddhgs::io
