@@ -391,6 +391,27 @@ TEST(BlocksCli, BadInputIsOneLineAndLeavesNothing) {
   ASSERT_EQ(test::error_lines(out).size(), 1u) << out;
   EXPECT_NE(out.find("--seam-blend"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(root / "run"));
+  // A block's place in its flight that cannot be its own (fewer flight
+  // views than the block trains on), or malformed: train refuses it naming
+  // block.json, before it writes anything.
+  const fs::path context_file = out_dir / "block_00" / io::kBlockContextFile;
+  const std::string context = io::read_file(context_file);
+  for (const auto& [key, value] : {std::pair<std::string, json>{"flight_train_views", 1},
+                                   std::pair<std::string, json>{"flight_extent", -1.0}}) {
+    json bad = json::parse(context);
+    bad[key] = value;
+    io::write_file_atomically(context_file, bad.dump(2));
+    EXPECT_NE(ddhgs("train " + (out_dir / "block_00").string() + " --out " +
+                        (root / "run").string() + test::kQuickTrain,
+                    &out),
+              0);
+    const auto errors = test::error_lines(out);
+    ASSERT_EQ(errors.size(), 1u) << out;
+    EXPECT_NE(errors[0].find(context_file.string()), std::string::npos) << errors[0];
+    EXPECT_NE(errors[0].find(key), std::string::npos) << errors[0];
+    EXPECT_FALSE(fs::exists(root / "run"));
+  }
+  io::write_file_atomically(context_file, context);
   // A second partition into the same folder needs --force.
   EXPECT_NE(ddhgs("partition " + scene + " --out " + out_dir.string(), &out), 0);
   EXPECT_NE(out.find("--force"), std::string::npos) << out;
