@@ -129,9 +129,13 @@ int Trainer::view_for(int64_t iteration) const {
   const int64_t n = int64_t(views.size());
   // The block's views take the first of the flight's slots (which views
   // they are does not matter: every permutation is as likely).
-  const int64_t slots = !warmup && flight_views_ > n ? flight_views_ : n;
+  const int64_t slots = warmup ? n : schedule_views();
   const int64_t slot = epoch_slot(iteration, slots, config_.seed);
   return slot < n ? views[size_t(slot)] : kElsewhere;
+}
+
+int64_t Trainer::schedule_views() const {
+  return block_ ? block_->flight_train_views : int64_t(scene_->train.size());
 }
 
 json Trainer::coast(int64_t iteration) {

@@ -182,10 +182,11 @@ class Trainer : private StageHost {
   torch::Tensor background_;  // [N]
   double extent_ = 1;
   // A block of a flight (io::read_block_context) trained as part of it
-  // (data.block_as_flight): its context, and the flight's training views
-  // the steps draw from (0: the scene's own).
+  // (data.block_as_flight).
   std::optional<io::BlockContext> block_;
-  int64_t flight_views_ = 0;
+  // The training views the steps draw from: the flight's for such a block,
+  // else the scene's own.
+  int64_t schedule_views() const;
   model::WavelengthEncoder encoder_{nullptr};
   CameraRefinement camera_refinement_{nullptr};  // camera_refinement.enabled
   ExposureCorrection exposure_{nullptr};         // model.exposure_correction

@@ -63,7 +63,7 @@ void Trainer::write_outputs(double seconds, const json& test_at_end) {
                  " MiB resident (train_summary.json: peak_rss_mib)");
   if (block_)
     summary["block"] = {{"name", block_->name},
-                        {"flight_train_views", flight_views_},
+                        {"flight_train_views", block_->flight_train_views},
                         {"own_train_views", int64_t(scene_->train.size())},
                         {"flight_extent", extent_}};
   if (offsets.defined()) {

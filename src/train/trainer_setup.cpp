@@ -51,8 +51,7 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
   json written = config;
   // A block of a flight runs the flight's schedule, so its length follows the
   // flight's training views.
-  const int64_t schedule_views =
-      t->flight_views_ > 0 ? t->flight_views_ : int64_t(t->scene_->train.size());
+  const int64_t schedule_views = t->schedule_views();
   const int64_t length = run_iterations(t->config_, t->scene_->band_per_view(), schedule_views);
   if (length != t->config_.iterations) {
     core::log_info("training for " + std::to_string(length) + " iterations (" +
@@ -87,10 +86,11 @@ std::unique_ptr<Trainer> Trainer::start(const json& config, const RunPaths& run,
 void Trainer::log_block() const {
   if (!block_) return;
   const int64_t own = int64_t(scene_->train.size());
-  core::log_info(block_->name + " of a flight of " + std::to_string(flight_views_) +
+  const int64_t flight = block_->flight_train_views;
+  core::log_info(block_->name + " of a flight of " + std::to_string(flight) +
                  " training views, trained as the flight's model would have trained its ground "
                  "(data.block_as_flight): " +
-                 std::to_string(own) + " of every " + std::to_string(flight_views_) +
+                 std::to_string(own) + " of every " + std::to_string(flight) +
                  " steps render one of its views, the others move its Gaussians on momentum "
                  "alone; the flight's extent " +
                  core::fixed(extent_, 3) +
@@ -244,7 +244,6 @@ void Trainer::load_scene() {
                           "flight_train_views: " + std::to_string(block_->flight_train_views) +
                               " is fewer than the block's own " + std::to_string(own) +
                               " training views (was the block's transforms.json edited?)");
-      flight_views_ = block_->flight_train_views;
       extent_ = block_->flight_extent;
     }
   }

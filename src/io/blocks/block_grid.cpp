@@ -75,6 +75,9 @@ json vec(const core::Vec3& v) {
 json box(const GroundBox& b) {
   return {{"u", {b.u0, b.u1}}, {"v", {b.v0, b.v1}}};
 }
+json ground(const GroundFrame& f) {
+  return {{"origin", vec(f.origin)}, {"u", vec(f.u)}, {"v", vec(f.v)}, {"normal", vec(f.n)}};
+}
 
 // Reads blocks.json with the file and key named in every refusal.
 struct BlocksReader {
@@ -132,6 +135,17 @@ struct BlocksReader {
     std::tie(out.v0, out.v1) = range(b, "v");
     return out;
   }
+  // The file's JSON object, when it is a `format` file of version 1 (`name`:
+  // the key a file that is no JSON object is refused under).
+  json object(const std::string& name, const std::string& format) const {
+    require_regular_file(path);
+    const json j = json::parse(read_file(path), nullptr, false);
+    if (j.is_discarded() || !j.is_object()) fail(name, "not a JSON object");
+    if (!j.contains("format") || j["format"] != format)
+      fail("format", "expected \"" + format + "\" (a file written by ddhgs partition)");
+    integer(j, "version", 1, 1);
+    return j;
+  }
   std::vector<std::string> strings(const json& parent, const std::string& key) const {
     const json& v = at(parent, key);
     if (!v.is_array()) fail(key, "expected a list of file paths");
@@ -163,11 +177,7 @@ void write_blocks_file(const fs::path& path, const BlocksFile& file) {
   json j = {{"format", "ddhgs blocks"},
             {"version", 1},
             {"scene", file.scene.string()},
-            {"ground",
-             {{"origin", vec(g.frame.origin)},
-              {"u", vec(g.frame.u)},
-              {"v", vec(g.frame.v)},
-              {"normal", vec(g.frame.n)}}},
+            {"ground", ground(g.frame)},
             {"footprint", box(g.footprint)},
             {"rows", g.rows},
             {"cols", g.cols},
@@ -177,13 +187,8 @@ void write_blocks_file(const fs::path& path, const BlocksFile& file) {
 }
 
 BlocksFile read_blocks_file(const fs::path& path) {
-  require_regular_file(path);
-  const json j = json::parse(read_file(path), nullptr, false);
   const BlocksReader r{path};
-  if (j.is_discarded() || !j.is_object()) r.fail("blocks.json", "not a JSON object");
-  if (!j.contains("format") || j["format"] != "ddhgs blocks")
-    r.fail("format", "expected \"ddhgs blocks\" (a file written by ddhgs partition)");
-  r.integer(j, "version", 1, 1);
+  const json j = r.object("blocks.json", "ddhgs blocks");
   BlocksFile file;
   const json& scene = r.at(j, "scene");
   if (!scene.is_string() || scene.get<std::string>().empty()) r.fail("scene", "expected a path");
@@ -226,11 +231,7 @@ void write_block_context(const fs::path& path, const BlockContext& c) {
   const json j = {{"format", "ddhgs block"},
                   {"version", 1},
                   {"name", c.name},
-                  {"ground",
-                   {{"origin", vec(c.frame.origin)},
-                    {"u", vec(c.frame.u)},
-                    {"v", vec(c.frame.v)},
-                    {"normal", vec(c.frame.n)}}},
+                  {"ground", ground(c.frame)},
                   {"cell", box(c.cell)},
                   {"margined", box(c.margined)},
                   {"flight_train_views", c.flight_train_views},
@@ -241,13 +242,8 @@ void write_block_context(const fs::path& path, const BlockContext& c) {
 std::optional<BlockContext> read_block_context(const fs::path& scene_root) {
   const fs::path path = scene_root / kBlockContextFile;
   if (!fs::exists(path)) return std::nullopt;
-  require_regular_file(path);
-  const json j = json::parse(read_file(path), nullptr, false);
   const BlocksReader r{path};
-  if (j.is_discarded() || !j.is_object()) r.fail("block.json", "not a JSON object");
-  if (!j.contains("format") || j["format"] != "ddhgs block")
-    r.fail("format", "expected \"ddhgs block\" (a file written by ddhgs partition)");
-  r.integer(j, "version", 1, 1);
+  const json j = r.object(kBlockContextFile, "ddhgs block");
   BlockContext c;
   const json& name = r.at(j, "name");
   if (!name.is_string()) r.fail("name", "expected the block's folder name");
