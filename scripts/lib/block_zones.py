@@ -9,7 +9,10 @@ blocks' margined cells) and over the rest (scripts/blocks_benchmark.sh):
   truth blurred by a 3x3 box (a model that is exact but loses fine detail),
   and the share of plant pixels (truth NDVI > 0.4) in each, with the zones'
   PSNR at the rest's plant share (`zone_at_rest_mix`: the zones' plant and
-  soil errors weighed as the rest's);
+  soil errors weighed as the rest's), and the PSNR over each cell's ground
+  outside the zones (`cell_rest_db`: where one block's model alone draws
+  the merged model, so a block that trained worse than its neighbours
+  shows there);
 - ortho (when every run has renders/ortho/reflectance.tif and the flight
   its truth/ortho.npy): the orthomosaic, sampled bilinearly at the truth
   ortho's pixel centres, against it over the ground every run covers, which
@@ -66,7 +69,8 @@ def border_distance(blocks, u, v):
     return d
 
 
-def view_zone(scene, blocks, name):
+def view_ground(scene, blocks, name):
+    """Ground coordinates (u, v) where each pixel's ray meets the ground plane."""
     frames = {os.path.splitext(os.path.basename(f["hyperspectral_file_path"]))[0]: f
               for f in scene["frames"]}
     f = frames[name]
@@ -81,8 +85,14 @@ def view_zone(scene, blocks, name):
     origin, n = np.array(g["origin"]), np.array(g["normal"])
     centre = c2w[:3, 3]
     t = ((origin - centre) @ n) / (d @ n)
-    u, v = ground_uv(blocks, centre + d * t[..., None])
-    return in_zone(blocks, u, v)
+    return ground_uv(blocks, centre + d * t[..., None])
+
+
+def cell_rest(blocks, u, v):
+    """Per block, the pixels whose ground lies in its cell outside every zone."""
+    zone = in_zone(blocks, u, v)
+    return [~zone & (u >= b["cell"]["u"][0]) & (u <= b["cell"]["u"][1]) &
+            (v >= b["cell"]["v"][0]) & (v <= b["cell"]["v"][1]) for b in blocks["blocks"]]
 
 
 def psnr(squared_errors):
@@ -124,10 +134,12 @@ def held_out(scene_dir, scene, blocks, runs):
 
 def held_out_group(scene_dir, scene, blocks, runs, label, names):
     errors = {r: [] for r in runs + ["noisy capture", "truth, 3x3 box"]}
-    zones, plant = [], []
+    zones, plant, cells = [], [], []
     for name in names:
         truth = np.load(os.path.join(scene_dir, "clean", name + ".npy")).astype(np.float64)
-        zones.append(view_zone(scene, blocks, name).ravel())
+        u, v = view_ground(scene, blocks, name)
+        zones.append(in_zone(blocks, u, v).ravel())
+        cells.append(np.stack([c.ravel() for c in cell_rest(blocks, u, v)]))
         plant.append(plants(truth).ravel())
         images = {"noisy capture": np.load(os.path.join(scene_dir, "hyperspectral", name + ".npy")),
                   "truth, 3x3 box": box3(truth)}
@@ -140,9 +152,14 @@ def held_out_group(scene_dir, scene, blocks, runs, label, names):
                       "rest_pixels": int((~zone).sum()),
                       "plant_share_zone": round(float(plant[zone].mean()), 3),
                       "plant_share_rest": round(float(plant[~zone].mean()), 3)}))
+    cells = np.concatenate(cells, 1)
     for key, e in errors.items():
         e = np.concatenate(e)
-        print(json.dumps({label: key, "all_db": psnr(e), **zone_figures(e, zone, plant)}))
+        # Each cell's own ground away from the zones: where one block's
+        # model alone draws the merged model.
+        by_cell = {b["name"]: psnr(e[cells[i]]) for i, b in enumerate(blocks["blocks"])}
+        print(json.dumps({label: key, "all_db": psnr(e), **zone_figures(e, zone, plant),
+                          "cell_rest_db": by_cell}))
 
 
 def read_geotiff(path):

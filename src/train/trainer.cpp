@@ -480,11 +480,14 @@ TrainStatus Trainer::run_steps() {
   auto gaussian_status = [&shown_psnr, &shown_loss](const json& record) {
     if (record.contains("train_psnr")) shown_psnr = record["train_psnr"].get<double>();
     if (record.contains("loss")) shown_loss = record["loss"].get<double>();
-    char psnr_text[40] = "";
+    // A block whose first steps lie elsewhere has no loss to show yet.
+    char loss_text[40] = "", psnr_text[40] = "";
+    if (!std::isnan(shown_loss))
+      std::snprintf(loss_text, sizeof loss_text, "loss %.4f  ", shown_loss);
     if (!std::isnan(shown_psnr))
-      std::snprintf(psnr_text, sizeof psnr_text, "  psnr %.2f dB", shown_psnr);
+      std::snprintf(psnr_text, sizeof psnr_text, "psnr %.2f dB  ", shown_psnr);
     char text[160];
-    std::snprintf(text, sizeof text, "loss %.4f%s  G %lld", shown_loss, psnr_text,
+    std::snprintf(text, sizeof text, "%s%sG %lld", loss_text, psnr_text,
                   (long long)record["num_gaussians"].get<int64_t>());
     return std::string(text);
   };

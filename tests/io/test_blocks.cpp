@@ -249,5 +249,36 @@ TEST(GroundBoxMask, APixelCountsWhereItsRayMeetsTheGroundInsideTheBox) {
       ground_box_mask(frame, box, nadir_camera(0, 0, -10), 0, 0, 100, 80).sum().item<int64_t>(), 0);
 }
 
+TEST(GroundBoxMask, AgreesWithTheCamerasProjectionOfTheGround) {
+  // A tilted, turned camera and a box off the image centre: ground points
+  // projected into the image as the rasterizer projects them (OpenCV axes)
+  // land on pixels the mask marks exactly when the box holds them, so a
+  // flipped or swapped image axis cannot pass.
+  core::Camera camera;
+  camera.intrinsics = {120, 110, 64, 48, 128, 96};
+  camera.world_to_camera = core::look_at({0.5, -1, 8}, {2, 1.5, 0}, {1, 0.3, 0});
+  GroundFrame frame;
+  frame.origin = {0, 0, 0.25};
+  const GroundBox box{1.0, 3.5, 0.5, 2.0};
+  const torch::Tensor mask = ground_box_mask(frame, box, camera, 0, 0, 128, 96);
+  const core::Intrinsics& k = camera.intrinsics;
+  int inside = 0, outside = 0;
+  for (double u = -4; u <= 8; u += 0.05)
+    for (double v = -4; v <= 7; v += 0.05) {
+      // Away from the box's edges by more than a pixel's ground (< 0.1 here).
+      const double edge = std::min(
+          {std::abs(u - box.u0), std::abs(u - box.u1), std::abs(v - box.v0), std::abs(v - box.v1)});
+      if (edge < 0.15) continue;
+      const Vec3 c = camera.world_to_camera.transform_point({u, v, 0.25});
+      const double x = k.fx * c.x / c.z + k.cx, y = k.fy * c.y / c.z + k.cy;
+      if (c.z <= 0 || x < 0 || y < 0 || x >= k.width || y >= k.height) continue;
+      const bool marked = mask[int(y)][int(x)].item<bool>();
+      EXPECT_EQ(marked, box.contains(u, v)) << u << ", " << v;
+      (marked ? inside : outside)++;
+    }
+  EXPECT_GT(inside, 100);  // the box is in view, and so is ground beyond it
+  EXPECT_GT(outside, 100);
+}
+
 }  // namespace
 }  // namespace ddhgs::io
