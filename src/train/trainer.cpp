@@ -289,11 +289,11 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
     rendered = exposure_->apply(view, rendered, bands.defined() ? bands : scene_->view_bands(view));
   // A block learns the ground of its cell and margin: elsewhere the target
   // is the render itself, which no loss term pulls on.
+  torch::Tensor inside;  // [H, W, 1] bool: a block's pixels that the loss measures
   if (block_ && !pseudo) {
     core::StageScope stage("block mask");
-    target = torch::where(
-        block_loss_mask(camera, crop ? &*crop : nullptr, rendered.size(0), rendered.size(1)),
-        target, rendered.detach());
+    inside = block_loss_mask(camera, crop ? &*crop : nullptr, rendered.size(0), rendered.size(1));
+    target = torch::where(inside, target, rendered.detach());
   }
   LossValues loss;
   {
@@ -347,7 +347,18 @@ json Trainer::step(int64_t iteration, const PseudoView* pseudo) {
   core::StageScope stage("metrics");
   json record = {{"iter", iteration}, {"loss", loss.total.item<double>()}};
   for (const auto& [name, value] : loss.terms) record[name] = value;
-  if (keeps_record(iteration)) record["train_psnr"] = psnr(rendered, target);
+  if (keeps_record(iteration)) {
+    if (!inside.defined()) {
+      record["train_psnr"] = psnr(rendered, target);
+    } else if (inside.any().item<bool>()) {
+      // Over the pixels the block learns: elsewhere the target is the
+      // render itself, which would flatter the figure (120 dB on a view
+      // that sees none of the block's ground).
+      const torch::Tensor measured = inside.expand_as(rendered);
+      record["train_psnr"] =
+          psnr(rendered.detach().masked_select(measured), target.masked_select(measured));
+    }
+  }
   record["num_gaussians"] = g.size();
   record["densify_added"] = state_.counters.densify_added;
   record["densify_removed"] = state_.counters.densify_removed;

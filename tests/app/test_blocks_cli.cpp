@@ -280,6 +280,25 @@ TEST(BlocksCli, ABlockTrainsOnItsFlightsScheduleAndExtent) {
         << out;
   EXPECT_EQ(io::read_file(root / "true" / "gaussians.ply"),
             io::read_file(root / "false" / "gaussians.ply"));
+
+  // A box that no view sees: nothing to learn, so no training PSNR (the
+  // render against itself would read 120 dB), and the loss is zero.
+  context.margined = {1e6, 1e6 + 1, 1e6, 1e6 + 1};
+  io::write_block_context(whole / io::kBlockContextFile, context);
+  ASSERT_EQ(ddhgs("-q train " + whole.string() + " --out " + (root / "nowhere").string() +
+                      test::kQuickTrain + " --set output.log_every=1",
+                  &out),
+            0)
+      << out;
+  const std::string nowhere = io::read_file(root / "nowhere" / "metrics.jsonl");
+  int records = 0;
+  for (size_t at = 0, end; (end = nowhere.find('\n', at)) != std::string::npos; at = end + 1) {
+    const json record = json::parse(nowhere.substr(at, end - at));
+    EXPECT_FALSE(record.contains("train_psnr")) << record.dump();
+    EXPECT_EQ(record.value("loss", -1.0), 0.0) << record.dump();
+    ++records;
+  }
+  EXPECT_EQ(records, 20);
 }
 
 TEST(BlocksCli, LocalScriptTrainsEveryBlockThenMerges) {
