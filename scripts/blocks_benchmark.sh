@@ -8,7 +8,8 @@
 # compared with one model trained on the whole flight: held-out PSNR
 # (eval), PSNR in the blocks' overlap zones and elsewhere, in the held-out
 # captures and in the orthomosaic against the truth's orthographic
-# reflectance (scripts/lib/block_zones.py), peak memory and CPU time of
+# reflectance, and on each cell's own ground away from the zones
+# (scripts/lib/block_zones.py), peak memory and CPU time of
 # every run; the held-out figures over the flight's own held-out captures
 # and, apart, over novel views between its captures and lines (synth
 # --novel-views: 33 on the default 4 x 12 grid), which see every overlap
