@@ -88,9 +88,9 @@ def view_ground(scene, blocks, name):
     return ground_uv(blocks, centre + d * t[..., None])
 
 
-def cell_rest(blocks, u, v):
-    """Per block, the pixels whose ground lies in its cell outside every zone."""
-    zone = in_zone(blocks, u, v)
+def cell_rest(blocks, u, v, zone):
+    """Per block, the pixels whose ground lies in its cell outside every zone
+    (zone: in_zone of the same u, v)."""
     return [~zone & (u >= b["cell"]["u"][0]) & (u <= b["cell"]["u"][1]) &
             (v >= b["cell"]["v"][0]) & (v <= b["cell"]["v"][1]) for b in blocks["blocks"]]
 
@@ -138,8 +138,9 @@ def held_out_group(scene_dir, scene, blocks, runs, label, names):
     for name in names:
         truth = np.load(os.path.join(scene_dir, "clean", name + ".npy")).astype(np.float64)
         u, v = view_ground(scene, blocks, name)
-        zones.append(in_zone(blocks, u, v).ravel())
-        cells.append(np.stack([c.ravel() for c in cell_rest(blocks, u, v)]))
+        zone = in_zone(blocks, u, v)
+        zones.append(zone.ravel())
+        cells.append(np.stack([c.ravel() for c in cell_rest(blocks, u, v, zone)]))
         plant.append(plants(truth).ravel())
         images = {"noisy capture": np.load(os.path.join(scene_dir, "hyperspectral", name + ".npy")),
                   "truth, 3x3 box": box3(truth)}
