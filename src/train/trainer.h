@@ -184,6 +184,7 @@ class Trainer : private StageHost {
   // A block of a flight (io::read_block_context) trained as part of it
   // (data.block_as_flight).
   std::optional<io::BlockContext> block_;
+  bool background_is_flights_ = false;  // the block's flight backdrop, not learned
   // The training views the steps draw from: the flight's for such a block,
   // else the scene's own.
   int64_t schedule_views() const;

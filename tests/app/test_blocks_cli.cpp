@@ -10,6 +10,7 @@
 #include <set>
 
 #include "io/blocks/block_grid.h"
+#include "io/blocks/partition.h"
 #include "io/files/atomic_file.h"
 #include "io/ply/ply.h"
 #include "io/scene/scene.h"
@@ -135,6 +136,13 @@ TEST(BlocksCli, PartitionTrainMergeEvaluatesEveryHeldOutView) {
   const json config = json::parse(io::read_file(merged / "config.json"));
   EXPECT_EQ(fs::path(config["data"]["path"].get<std::string>()),
             fs::absolute(survey()).lexically_normal());
+  // One backdrop for the whole flight: every block drew over it, and so
+  // does the merged run.
+  const torch::Tensor backdrop = io::flight_backdrop(*scene, scene->train);
+  const json drawn = json::parse(io::read_file(merged / "background.json"))["background"];
+  ASSERT_EQ(int64_t(drawn.size()), scene->bands());
+  for (int64_t k = 0; k < scene->bands(); ++k)
+    EXPECT_FLOAT_EQ(drawn[size_t(k)].get<float>(), backdrop[k].item<float>()) << k;
 
   // eval measures the whole flight's held-out views; render and export read the run.
   ASSERT_EQ(ddhgs("-q eval " + merged.string(), &out), 0) << out;
@@ -224,6 +232,7 @@ TEST(BlocksCli, ABlockTrainsOnItsFlightsScheduleAndExtent) {
   const io::BlocksFile file = io::read_blocks_file(blocks / "blocks.json");
   const auto scene = io::load_scene(survey());
   const double flight_extent = io::scene_extent(*scene, scene->train);
+  const torch::Tensor backdrop = io::flight_backdrop(*scene, scene->train);
   for (size_t b = 0; b < file.blocks.size(); ++b) {
     const auto context = io::read_block_context(blocks / file.blocks[b].name);
     ASSERT_TRUE(context.has_value()) << file.blocks[b].name;
@@ -233,6 +242,10 @@ TEST(BlocksCli, ABlockTrainsOnItsFlightsScheduleAndExtent) {
     EXPECT_DOUBLE_EQ(context->cell.u0, file.grid.cell(int(b)).u0);
     EXPECT_DOUBLE_EQ(context->margined.v1, file.grid.margined(int(b)).v1);
     EXPECT_DOUBLE_EQ(context->frame.n.dot(file.grid.frame.n), 1);
+    // Every block has the one backdrop, the flight's.
+    ASSERT_EQ(int64_t(context->background.size()), scene->bands());
+    for (int64_t k = 0; k < scene->bands(); ++k)
+      EXPECT_FLOAT_EQ(float(context->background[size_t(k)]), backdrop[k].item<float>());
   }
 
   const fs::path block = blocks / "block_00", run = block / "run";
@@ -247,6 +260,13 @@ TEST(BlocksCli, ABlockTrainsOnItsFlightsScheduleAndExtent) {
   EXPECT_EQ(summary["block"]["flight_train_views"].get<size_t>(), scene->train.size());
   EXPECT_EQ(summary["block"]["own_train_views"].get<size_t>(), own);
   EXPECT_DOUBLE_EQ(summary["block"]["flight_extent"].get<double>(), flight_extent);
+  // The run draws over the flight's backdrop, unchanged by training (a
+  // learned background moves from its first step).
+  EXPECT_NE(out.find("draws over the flight's backdrop"), std::string::npos) << out;
+  const json drawn = json::parse(io::read_file(run / "background.json"))["background"];
+  ASSERT_EQ(int64_t(drawn.size()), scene->bands());
+  for (int64_t k = 0; k < scene->bands(); ++k)
+    EXPECT_EQ(drawn[size_t(k)].get<float>(), backdrop[k].item<float>()) << k;
   // Every step has a record: those that rendered a view have a loss, the
   // others lie elsewhere in the flight; both kinds happen.
   int rendered = 0, elsewhere = 0;
@@ -271,6 +291,7 @@ TEST(BlocksCli, ABlockTrainsOnItsFlightsScheduleAndExtent) {
   context.flight_train_views = int64_t(alone->train.size());
   context.flight_extent = io::scene_extent(*alone, alone->train);
   context.margined = {-1e9, 1e9, -1e9, 1e9};
+  context.background.clear();  // learned, as the scene alone learns it
   io::write_block_context(whole / io::kBlockContextFile, context);
   for (const char* as_flight : {"true", "false"})
     ASSERT_EQ(ddhgs("-q train " + whole.string() + " --out " + (root / as_flight).string() +

@@ -1,13 +1,17 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numeric>
 #include <random>
 
 #include "core/error.h"
 #include "io/blocks/block_grid.h"
 #include "io/blocks/ground.h"
 #include "io/blocks/partition.h"
+#include "io/cube/cube.h"
 #include "io/files/atomic_file.h"
+#include "io/scene/scene.h"
+#include "io/transforms/transforms.h"
 #include "support/test_support.h"
 
 namespace ddhgs::io {
@@ -195,6 +199,10 @@ TEST(BlockContext, RoundTripsAndRefusesMalformedFiles) {
   c.flight_train_views = 44;
   c.flight_extent = 6.487953521;
   write_block_context(dir / kBlockContextFile, c);
+  // A block.json written before the flight's backdrop: none, as it was.
+  EXPECT_TRUE(read_block_context(dir)->background.empty());
+  c.background = {0.125, 0.2567, 0.5};
+  write_block_context(dir / kBlockContextFile, c);
   const std::optional<BlockContext> back = read_block_context(dir);
   ASSERT_TRUE(back.has_value());
   EXPECT_EQ(back->name, "block_01");
@@ -203,6 +211,7 @@ TEST(BlockContext, RoundTripsAndRefusesMalformedFiles) {
   EXPECT_DOUBLE_EQ(back->margined.v0, -0.2);
   EXPECT_EQ(back->flight_train_views, 44);
   EXPECT_EQ(back->flight_extent, c.flight_extent);  // every digit
+  EXPECT_EQ(back->background, c.background);
 
   const std::string text = read_file(dir / kBlockContextFile);
   const fs::path bad_dir = dir / "bad";
@@ -224,6 +233,84 @@ TEST(BlockContext, RoundTripsAndRefusesMalformedFiles) {
   refused("\"flight_train_views\": 44", "\"flight_train_views\": 0", "flight_train_views");
   refused("\"flight_extent\": 6.487953521", "\"flight_extent\": -1", "flight_extent");
   refused("\"ddhgs block\"", "\"ddhgs blocks\"", "format");
+  refused("0.2567", "\"x\"", "background");
+  refused("\"background\": [", "\"background\": [], \"was\": [", "background");
+}
+
+// A scene of `views` nadir views of bands x 16 x 20 float32 pixels, each
+// band at `ground` on 60 % of its pixels and at values spread above and
+// below on the rest, so the median of any large sample is `ground`.
+fs::path backdrop_scene(const std::string& name, int views, const std::vector<double>& ground) {
+  const fs::path root = test::temp_dir(name);
+  fs::create_directories(root / "hyperspectral");
+  TransformsFile file;
+  const int64_t bands = int64_t(ground.size()), h = 16, w = 20;
+  for (int64_t b = 0; b < bands; ++b) file.wavelengths_nm.push_back(450 + 50 * double(b));
+  for (int i = 0; i < views; ++i) {
+    TransformsFrame f;
+    f.hyperspectral_file_path = "hyperspectral/v" + std::to_string(i) + ".npy";
+    f.intrinsics = {20, 20, 10, 8, int(w), int(h)};
+    f.camera_to_world_gl = core::opencv_w2c_to_opengl_c2w(nadir_camera(i, 0, 10).world_to_camera);
+    // Pixel k of the view: the ground on k % 5 < 3, else ground -/+ 0.1 to 0.3.
+    torch::Tensor k = torch::arange(h * w, torch::kFloat32);
+    torch::Tensor cube = torch::empty({h * w, bands});
+    for (int64_t b = 0; b < bands; ++b) {
+      const torch::Tensor r = torch::fmod(k, 5);
+      const torch::Tensor off = torch::fmod(k, 7) / 6 * 0.2 + 0.1;
+      cube.select(1, b).copy_(torch::where(r < 3, torch::full_like(k, ground[size_t(b)]),
+                                           ground[size_t(b)] + (r == 3).to(torch::kFloat32) * off -
+                                               (r == 4).to(torch::kFloat32) * off));
+    }
+    write_npy(root / f.hyperspectral_file_path, cube.view({h, w, bands}).contiguous());
+    file.frames.push_back(f);
+  }
+  write_transforms(root / "transforms.json", file);
+  return root;
+}
+
+TEST(FlightBackdrop, IsEachBandsMedianOverTheViewsItIsGiven) {
+  const std::vector<double> ground = {0.35, 0.45, 0.5, 0.6};
+  const fs::path root = backdrop_scene("backdrop", 20, ground);
+  const auto scene = load_scene(root);
+  std::vector<int> views(20);
+  std::iota(views.begin(), views.end(), 0);
+  const torch::Tensor all = flight_backdrop(*scene, views);
+  ASSERT_EQ(all.numel(), 4);
+  for (int64_t b = 0; b < 4; ++b) EXPECT_NEAR(all[b].item<double>(), ground[size_t(b)], 1e-6);
+  // A view far brighter than the others: a sample with it is pulled up
+  // only if it holds most of the sample.
+  torch::Tensor bright = torch::full({16, 20, 4}, 0.9f);
+  write_npy(root / "hyperspectral" / "v0.npy", bright);
+  const auto changed = load_scene(root);
+  EXPECT_NEAR(flight_backdrop(*changed, views)[2].item<double>(), 0.5, 1e-6);
+  EXPECT_NEAR(flight_backdrop(*changed, {0})[2].item<double>(), 0.9, 1e-6);
+}
+
+TEST(FlightBackdrop, ARigsBandIsTheMedianOfTheViewsHoldingIt) {
+  // Band-per-view: view i holds band i % 2 alone; band 0's views show the
+  // ground of 0.3, band 1's 0.7 everywhere, so a median that mixed the
+  // bands' views would be neither.
+  const fs::path root = backdrop_scene("backdrop_rig", 6, {0.3});
+  TransformsFile file = read_transforms(root / "transforms.json");
+  file.wavelengths_nm = {500, 600};
+  for (size_t i = 0; i < file.frames.size(); ++i) {
+    file.frames[i].bands = {int(i % 2)};
+    if (i % 2 == 1)  // band 1's views: their ground at 0.7
+      write_npy(root / file.frames[i].hyperspectral_file_path, torch::full({16, 20, 1}, 0.7f));
+  }
+  write_transforms(root / "transforms.json", file);
+  const auto scene = load_scene(root);
+  ASSERT_TRUE(scene->band_per_view());
+  const torch::Tensor b = flight_backdrop(*scene, {0, 1, 2, 3, 4, 5});
+  EXPECT_NEAR(b[0].item<double>(), 0.3, 1e-6);
+  EXPECT_NEAR(b[1].item<double>(), 0.7, 1e-6);
+  // Without a view of band 1 there is no backdrop: refused, naming the band.
+  try {
+    flight_backdrop(*scene, {0, 2});
+    ADD_FAILURE() << "a band no view holds was accepted";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("band 1 (600 nm)"), std::string::npos) << e.what();
+  }
 }
 
 TEST(GroundBoxMask, APixelCountsWhereItsRayMeetsTheGroundInsideTheBox) {

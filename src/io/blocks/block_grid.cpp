@@ -228,14 +228,15 @@ BlocksFile read_blocks_file(const fs::path& path) {
 }
 
 void write_block_context(const fs::path& path, const BlockContext& c) {
-  const json j = {{"format", "ddhgs block"},
-                  {"version", 1},
-                  {"name", c.name},
-                  {"ground", ground(c.frame)},
-                  {"cell", box(c.cell)},
-                  {"margined", box(c.margined)},
-                  {"flight_train_views", c.flight_train_views},
-                  {"flight_extent", c.flight_extent}};
+  json j = {{"format", "ddhgs block"},
+            {"version", 1},
+            {"name", c.name},
+            {"ground", ground(c.frame)},
+            {"cell", box(c.cell)},
+            {"margined", box(c.margined)},
+            {"flight_train_views", c.flight_train_views},
+            {"flight_extent", c.flight_extent}};
+  if (!c.background.empty()) j["background"] = c.background;
   write_file_atomically(path, j.dump(2) + "\n");
 }
 
@@ -254,6 +255,16 @@ std::optional<BlockContext> read_block_context(const fs::path& scene_root) {
   c.flight_train_views = r.integer(j, "flight_train_views", 1, 1 << 30);
   c.flight_extent = r.number(j, "flight_extent");
   if (!(c.flight_extent > 0)) r.fail("flight_extent", "expected a positive number");
+  if (j.contains("background")) {
+    const json& bg = j.at("background");
+    if (!bg.is_array() || bg.empty())
+      r.fail("background", "expected a list of numbers, one per band");
+    for (const json& value : bg) {
+      if (!value.is_number() || !std::isfinite(value.get<double>()))
+        r.fail("background", "expected a list of numbers, one per band");
+      c.background.push_back(value.get<double>());
+    }
+  }
   return c;
 }
 

@@ -86,6 +86,12 @@ struct BlockContext {
   GroundBox cell, margined;
   int64_t flight_train_views = 0;  // the whole flight's training views
   double flight_extent = 0;        // io::scene_extent of those views
+  // The flight's backdrop (io::flight_backdrop), one value per band: a
+  // block whose run learns its background draws over this one instead, the
+  // same for every block (a background learned from a block's own pixels
+  // settles differently in each, and so does what its Gaussians cover).
+  // Empty in a block.json written before 2026-12-08: the block learns its own.
+  std::vector<double> background;
 };
 constexpr const char* kBlockContextFile = "block.json";
 void write_block_context(const std::filesystem::path& path, const BlockContext& context);

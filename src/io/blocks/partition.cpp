@@ -1,5 +1,7 @@
 #include "io/blocks/partition.h"
 
+#include <ATen/CPUGeneratorImpl.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -10,6 +12,7 @@
 #include "io/blocks/ground.h"
 #include "io/files/output_folder.h"
 #include "io/ply/ply.h"
+#include "io/scene/backdrop.h"
 #include "io/scene/scene.h"
 #include "io/transforms/transforms.h"
 
@@ -32,6 +35,55 @@ std::pair<int, int> grid_shape(int blocks, double length_u, double length_v) {
     }
   }
   return best;
+}
+
+torch::Tensor flight_backdrop(const Scene& scene, const std::vector<int>& views) {
+  const int64_t bands = scene.bands();
+  // Per band, the views that hold it (a rig's band cameras hold one each),
+  // then up to kBackdropViews of them, spread over the flight.
+  std::vector<std::vector<int>> holding(static_cast<size_t>(bands));
+  for (const int v : views) {
+    const torch::Tensor held = scene.view_bands(v);
+    if (!held.defined()) {
+      for (int64_t b = 0; b < bands; ++b) holding[size_t(b)].push_back(v);
+      continue;
+    }
+    const torch::Tensor index = held.contiguous();
+    for (int64_t j = 0; j < index.numel(); ++j)
+      holding[size_t(index.data_ptr<int64_t>()[j])].push_back(v);
+  }
+  std::map<int, std::vector<int64_t>> chosen;  // view -> the bands it is sampled for
+  for (int64_t b = 0; b < bands; ++b) {
+    const std::vector<int>& list = holding[size_t(b)];
+    core::require(!list.empty(), scene.root,
+                  "no training view holds band " + std::to_string(b) + " (" +
+                      core::format_g(scene.wavelengths_nm[size_t(b)]) +
+                      " nm): the flight's backdrop needs every band");
+    const size_t count = std::min(list.size(), kBackdropViews);
+    for (size_t i = 0; i < count; ++i) chosen[list[i * list.size() / count]].push_back(b);
+  }
+  std::vector<std::vector<torch::Tensor>> samples(static_cast<size_t>(bands));
+  for (const auto& [view, wanted] : chosen) {
+    const torch::Tensor image = scene.image(view);  // [H, W, the view's bands]
+    const torch::Tensor flat = image.reshape({-1, image.size(2)});
+    torch::Tensor picked = flat;
+    if (flat.size(0) > kBackdropPixels) {
+      auto generator = at::make_generator<at::CPUGeneratorImpl>(uint64_t(view) + 1);
+      picked = flat.index_select(
+          0, torch::randperm(flat.size(0), generator, torch::kInt64).slice(0, 0, kBackdropPixels));
+    }
+    const torch::Tensor held = scene.view_bands(view);
+    for (const int64_t b : wanted) {
+      // The column of band b among the view's own bands.
+      int64_t column = b;
+      if (held.defined()) column = (held == b).nonzero().flatten()[0].item<int64_t>();
+      samples[size_t(b)].push_back(picked.select(1, column));
+    }
+  }
+  torch::Tensor out = torch::empty({bands}, torch::kFloat32);
+  for (int64_t b = 0; b < bands; ++b)
+    out[b] = torch::cat(samples[size_t(b)]).to(torch::kFloat32).nanmedian();
+  return out;
 }
 
 namespace {
@@ -242,6 +294,11 @@ BlocksFile partition_scene(const PartitionOptions& options) {
   context.frame = grid.frame;
   context.flight_train_views = int64_t(s.scene->train.size());
   context.flight_extent = scene_extent(*s.scene, s.scene->train);
+  const torch::Tensor backdrop = flight_backdrop(*s.scene, s.scene->train);
+  context.background.assign(backdrop.data_ptr<float>(),
+                            backdrop.data_ptr<float>() + backdrop.numel());
+  core::log_info("partition: the flight's backdrop, which every block draws over: " +
+                 describe_colour(backdrop));
   write_folder_atomically(request, [&](const fs::path& tmp) {
     for (int b = 0; b < grid.blocks(); ++b) {
       BlockRecord record;

@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "io/blocks/block_grid.h"
+#include "io/scene/scene.h"
 
 namespace ddhgs::io {
 
@@ -21,6 +22,18 @@ struct PartitionOptions {
 // A view belongs to a block when at least this share of its footprint
 // lies in the block's cell and margin.
 constexpr double kViewShare = 0.25;
+
+// The flight's backdrop, the colour every block of it draws over
+// (BlockContext::background): per band, the median of a sample of the
+// training views' pixels, up to kBackdropViews of the views that hold the
+// band (spread over them) and kBackdropPixels pixels of each (drawn with a
+// fixed seed). float32 [bands]. A nadir flight's median is its commonest
+// ground (bare soil between rows, or the canopy), the colour a learned
+// background settles at. core::Error naming the scene when no view holds
+// a band.
+constexpr size_t kBackdropViews = 16;
+constexpr int64_t kBackdropPixels = 8192;
+torch::Tensor flight_backdrop(const Scene& scene, const std::vector<int>& views);
 
 // The rows and columns for `blocks` cells over a footprint of this size:
 // the factorisation whose cells are closest to square.
