@@ -436,8 +436,10 @@ TEST(BlocksCli, BadInputIsOneLineAndLeavesNothing) {
   // block.json, before it writes anything.
   const fs::path context_file = out_dir / "block_00" / io::kBlockContextFile;
   const std::string context = io::read_file(context_file);
-  for (const auto& [key, value] : {std::pair<std::string, json>{"flight_train_views", 1},
-                                   std::pair<std::string, json>{"flight_extent", -1.0}}) {
+  for (const auto& [key, value] :
+       {std::pair<std::string, json>{"flight_train_views", 1},
+        std::pair<std::string, json>{"flight_extent", -1.0},
+        std::pair<std::string, json>{"background", json::array({0.5, 0.5})}}) {
     json bad = json::parse(context);
     bad[key] = value;
     io::write_file_atomically(context_file, bad.dump(2));
