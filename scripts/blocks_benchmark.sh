@@ -112,7 +112,7 @@ done
 "$ddhgs" -q merge "$out/blocks" --out "$out/merged-cut" --seam-blend 0
 for run in single merged merged-cut; do
   echo "--- $run"
-  "$ddhgs" eval "$out/$run" --data "$scene" 2>&1 | sed -n '/^PSNR/,/clean/p'
+  "$ddhgs" eval "$out/$run" --data "$scene" 2>&1 | sed -n '/PSNR dB/,/clean/p'
   "$ddhgs" -q render "$out/$run" --format npy --data "$scene"
   "$ddhgs" -q render "$out/$run" --ortho --data "$scene"
 done
