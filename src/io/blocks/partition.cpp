@@ -1,7 +1,5 @@
 #include "io/blocks/partition.h"
 
-#include <ATen/CPUGeneratorImpl.h>
-
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -38,52 +36,18 @@ std::pair<int, int> grid_shape(int blocks, double length_u, double length_v) {
 }
 
 torch::Tensor flight_backdrop(const Scene& scene, const std::vector<int>& views) {
-  const int64_t bands = scene.bands();
-  // Per band, the views that hold it (a rig's band cameras hold one each),
-  // then up to kBackdropViews of them, spread over the flight.
-  std::vector<std::vector<int>> holding(static_cast<size_t>(bands));
+  std::vector<bool> held(size_t(scene.bands()), false);
   for (const int v : views) {
-    const torch::Tensor held = scene.view_bands(v);
-    if (!held.defined()) {
-      for (int64_t b = 0; b < bands; ++b) holding[size_t(b)].push_back(v);
-      continue;
-    }
-    const torch::Tensor index = held.contiguous();
-    for (int64_t j = 0; j < index.numel(); ++j)
-      holding[size_t(index.data_ptr<int64_t>()[j])].push_back(v);
+    const std::vector<int>& bands = scene.views[size_t(v)].bands;
+    if (bands.empty()) held.assign(held.size(), true);
+    for (const int b : bands) held[size_t(b)] = true;
   }
-  std::map<int, std::vector<int64_t>> chosen;  // view -> the bands it is sampled for
-  for (int64_t b = 0; b < bands; ++b) {
-    const std::vector<int>& list = holding[size_t(b)];
-    core::require(!list.empty(), scene.root,
+  for (size_t b = 0; b < held.size(); ++b)
+    core::require(held[b], scene.root,
                   "no training view holds band " + std::to_string(b) + " (" +
-                      core::format_g(scene.wavelengths_nm[size_t(b)]) +
+                      core::format_g(scene.wavelengths_nm[b]) +
                       " nm): the flight's backdrop needs every band");
-    const size_t count = std::min(list.size(), kBackdropViews);
-    for (size_t i = 0; i < count; ++i) chosen[list[i * list.size() / count]].push_back(b);
-  }
-  std::vector<std::vector<torch::Tensor>> samples(static_cast<size_t>(bands));
-  for (const auto& [view, wanted] : chosen) {
-    const torch::Tensor image = scene.image(view);  // [H, W, the view's bands]
-    const torch::Tensor flat = image.reshape({-1, image.size(2)});
-    torch::Tensor picked = flat;
-    if (flat.size(0) > kBackdropPixels) {
-      auto generator = at::make_generator<at::CPUGeneratorImpl>(uint64_t(view) + 1);
-      picked = flat.index_select(
-          0, torch::randperm(flat.size(0), generator, torch::kInt64).slice(0, 0, kBackdropPixels));
-    }
-    const torch::Tensor held = scene.view_bands(view);
-    for (const int64_t b : wanted) {
-      // The column of band b among the view's own bands.
-      int64_t column = b;
-      if (held.defined()) column = (held == b).nonzero().flatten()[0].item<int64_t>();
-      samples[size_t(b)].push_back(picked.select(1, column));
-    }
-  }
-  torch::Tensor out = torch::empty({bands}, torch::kFloat32);
-  for (int64_t b = 0; b < bands; ++b)
-    out[b] = torch::cat(samples[size_t(b)]).to(torch::kFloat32).nanmedian();
-  return out;
+  return sampled_colour(scene, views, kBackdropViews, kBackdropPixels);
 }
 
 namespace {

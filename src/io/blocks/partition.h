@@ -24,14 +24,13 @@ struct PartitionOptions {
 constexpr double kViewShare = 0.25;
 
 // The flight's backdrop, the colour every block of it draws over
-// (BlockContext::background): per band, the median of a sample of the
-// training views' pixels, up to kBackdropViews of the views that hold the
-// band (spread over them) and kBackdropPixels pixels of each (drawn with a
-// fixed seed). float32 [bands]. A nadir flight's median is its commonest
-// ground (bare soil between rows, or the canopy), the colour a learned
-// background settles at. core::Error naming the scene when no view holds
-// a band.
-constexpr size_t kBackdropViews = 16;
+// (BlockContext::background): io::sampled_colour of the training views,
+// kBackdropViews views (band by band in a band-per-view scene) and
+// kBackdropPixels pixels of each. float32 [bands]. A nadir flight's median
+// is its commonest ground (bare soil between rows, or the canopy), the
+// colour a learned background settles at. core::Error naming the scene
+// when no view holds a band.
+constexpr int kBackdropViews = 16;
 constexpr int64_t kBackdropPixels = 8192;
 torch::Tensor flight_backdrop(const Scene& scene, const std::vector<int>& views);
 

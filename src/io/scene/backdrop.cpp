@@ -1,5 +1,7 @@
 #include "io/scene/backdrop.h"
 
+#include <ATen/CPUGeneratorImpl.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -52,10 +54,9 @@ struct Borders {
   std::vector<torch::Tensor> bands;  // int64 scene band indices per entry
 };
 
-Borders border_pixels(const Scene& scene, const std::vector<int>& views, int max_views,
-                      int border_px) {
-  core::require(!views.empty(), scene.root, "no views to take the border colour from");
-  core::require(max_views > 0 && border_px > 0, "border_colour: expected positive counts");
+// Up to max_views of `views` spread along the list; in a band-per-view
+// scene band by band, so that every band the views hold is represented.
+std::vector<int> spread_views(const Scene& scene, const std::vector<int>& views, int max_views) {
   std::vector<int> chosen;
   auto sample = [&](const std::vector<int>& from) {
     const size_t count = std::min(from.size(), size_t(max_views));
@@ -75,27 +76,40 @@ Borders border_pixels(const Scene& scene, const std::vector<int>& views, int max
     std::sort(chosen.begin(), chosen.end());
     chosen.erase(std::unique(chosen.begin(), chosen.end()), chosen.end());
   }
+  return chosen;
+}
+
+// The scene bands view v holds, as an int64 index tensor (every band: all).
+torch::Tensor held_bands(const Scene& scene, int v) {
+  const torch::Tensor b = scene.view_bands(v);
+  return b.defined() ? b : torch::arange(scene.bands(), torch::kInt64);
+}
+
+Borders border_pixels(const Scene& scene, const std::vector<int>& views, int max_views,
+                      int border_px) {
+  core::require(!views.empty(), scene.root, "no views to take the border colour from");
+  core::require(max_views > 0 && border_px > 0, "border_colour: expected positive counts");
   Borders out;
-  for (int v : chosen) {
+  for (int v : spread_views(scene, views, max_views)) {
     const torch::Tensor image = scene.image(v);
     out.pixels.push_back(image_border(image, border_px));
     out.centres.push_back(image_centre(image));
-    const torch::Tensor b = scene.view_bands(v);
-    out.bands.push_back(b.defined() ? b : torch::arange(scene.bands(), torch::kInt64));
+    out.bands.push_back(held_bands(scene, v));
   }
   return out;
 }
 
-// The per-band median over every border pixel that holds the band: [N].
-torch::Tensor median_colour(const Scene& scene, const Borders& borders) {
-  if (!scene.band_per_view())
-    return std::get<0>(torch::cat(borders.pixels, 0).median(0)).contiguous();
+// The per-band median over every sampled pixel ([P_i, n_i] each, holding
+// the scene bands `bands[i]`) that holds the band: [N].
+torch::Tensor median_colour(const Scene& scene, const std::vector<torch::Tensor>& pixels,
+                            const std::vector<torch::Tensor>& bands) {
+  if (!scene.band_per_view()) return std::get<0>(torch::cat(pixels, 0).median(0)).contiguous();
   torch::Tensor colour = torch::zeros({scene.bands()}, torch::kFloat32);
   for (int64_t band = 0; band < scene.bands(); ++band) {
     std::vector<torch::Tensor> columns;
-    for (size_t i = 0; i < borders.pixels.size(); ++i) {
-      const torch::Tensor at = (borders.bands[i] == band).nonzero();
-      if (at.numel() > 0) columns.push_back(borders.pixels[i].select(1, at[0][0].item<int64_t>()));
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      const torch::Tensor at = (bands[i] == band).nonzero();
+      if (at.numel() > 0) columns.push_back(pixels[i].select(1, at[0][0].item<int64_t>()));
     }
     if (!columns.empty()) colour[band] = std::get<0>(torch::cat(columns).median(0));
   }
@@ -142,14 +156,35 @@ double round3(double value) {
 
 torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views, int max_views,
                             int border_px) {
-  return median_colour(scene, border_pixels(scene, views, max_views, border_px));
+  const Borders borders = border_pixels(scene, views, max_views, border_px);
+  return median_colour(scene, borders.pixels, borders.bands);
+}
+
+torch::Tensor sampled_colour(const Scene& scene, const std::vector<int>& views, int max_views,
+                             int64_t pixels_per_view) {
+  core::require(!views.empty(), scene.root, "no views to take the colour from");
+  core::require(max_views > 0 && pixels_per_view > 0, "sampled_colour: expected positive counts");
+  std::vector<torch::Tensor> pixels, bands;
+  for (int v : spread_views(scene, views, max_views)) {
+    const torch::Tensor image = scene.image(v);
+    const torch::Tensor flat = image.reshape({-1, image.size(2)}).to(torch::kFloat32);
+    torch::Tensor picked = flat;
+    if (flat.size(0) > pixels_per_view) {
+      auto generator = at::make_generator<at::CPUGeneratorImpl>(uint64_t(v) + 1);
+      picked = flat.index_select(
+          0, torch::randperm(flat.size(0), generator, torch::kInt64).slice(0, 0, pixels_per_view));
+    }
+    pixels.push_back(picked);
+    bands.push_back(held_bands(scene, v));
+  }
+  return median_colour(scene, pixels, bands);
 }
 
 BorderScan scan_border(const Scene& scene, const std::vector<int>& views, double tolerance,
                        double min_share) {
   const Borders borders = border_pixels(scene, views, kBorderViews, kBorderPx);
   BorderScan scan;
-  scan.colour = median_colour(scene, borders);
+  scan.colour = median_colour(scene, borders.pixels, borders.bands);
   double near = 0, total = 0;
   int views_on = 0, views_filled = 0;
   std::vector<torch::Tensor>

@@ -27,6 +27,14 @@ constexpr int kBorderPx = 2;
 torch::Tensor border_colour(const Scene& scene, const std::vector<int>& views,
                             int max_views = kBorderViews, int border_px = kBorderPx);
 
+// Per-band median of up to pixels_per_view pixels of each of up to
+// max_views of `views` (the views chosen as border_colour chooses them, the
+// pixels drawn with a seed fixed per view): [N] float32, the colour most of
+// the views' pixels show, e.g. a nadir flight's commonest ground. A band no
+// chosen view holds is 0.
+torch::Tensor sampled_colour(const Scene& scene, const std::vector<int>& views, int max_views,
+                             int64_t pixels_per_view);
+
 // A pixel belongs to the backdrop when every band is within this of the
 // backdrop's value (reflectance units). JPEG noise on Basil's white backdrop
 // stays within 0.02; its darkest leaves and its pot are 0.5 away and more.
