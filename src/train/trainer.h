@@ -184,7 +184,11 @@ class Trainer : private StageHost {
   // A block of a flight (io::read_block_context) trained as part of it
   // (data.block_as_flight).
   std::optional<io::BlockContext> block_;
-  bool background_is_flights_ = false;  // the block's flight backdrop, not learned
+  // A block whose run would learn its background draws over its flight's
+  // backdrop (block.json), not learned.
+  bool draws_flights_backdrop() const {
+    return block_ && config_.model.learn_background && !block_->background.empty();
+  }
   // The training views the steps draw from: the flight's for such a block,
   // else the scene's own.
   int64_t schedule_views() const;

@@ -96,7 +96,7 @@ void Trainer::log_block() const {
                  core::fixed(extent_, 3) +
                  "; the loss only where the ground lies in its cell and margin. Give it the "
                  "iterations you would give the whole flight.");
-  if (background_is_flights_)
+  if (draws_flights_backdrop())
     core::log_info(block_->name + " draws over the flight's backdrop (" +
                    io::describe_colour(background_.detach()) +
                    ", block.json), as every block of the flight does: its background is not "
@@ -254,14 +254,13 @@ void Trainer::load_scene() {
       // learned from its own pixels would settle differently in each, and
       // with it what the Gaussians cover (docs/benchmarks.md, "One backdrop
       // for every block").
-      if (config_.model.learn_background && !block_->background.empty()) {
+      if (draws_flights_backdrop()) {
         const std::vector<double>& bg = block_->background;
         if (int64_t(bg.size()) != scene_->bands())
           throw core::Error(data / io::kBlockContextFile,
                             "background: " + std::to_string(bg.size()) + " values for " +
                                 std::to_string(scene_->bands()) + " bands");
         background_ = torch::tensor(bg, torch::kFloat64).to(torch::kFloat32);
-        background_is_flights_ = true;
       }
     }
   }
@@ -298,7 +297,7 @@ void Trainer::build_modules() {
     // A block's flight backdrop stays as it is (a rate of zero keeps the
     // module, so the checkpoint, background.json and merge see it as ever).
     add_module(kBackgroundModule, background_module_,
-               background_is_flights_ ? 0.0 : config_.optim.background_lr);
+               draws_flights_backdrop() ? 0.0 : config_.optim.background_lr);
   }
   if (config_.camera_refinement.enabled) {
     camera_refinement_ = CameraRefinement(int64_t(scene_->views.size()), scene_->train);
